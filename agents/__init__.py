@@ -1,0 +1,1 @@
+"""Stable-Baselines3 training, evaluation and open-loop baselines (not yet implemented)."""

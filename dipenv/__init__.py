@@ -1,0 +1,1 @@
+"""Gymnasium environments for electric-field control of suspension rheology (not yet implemented)."""

@@ -1,0 +1,1 @@
+"""Stokesian-dynamics simulator of ideally conductive spheres under shear (public API)."""

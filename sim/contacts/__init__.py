@@ -1,0 +1,1 @@
+"""Contacts kernels of the simulator."""

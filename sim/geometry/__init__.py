@@ -1,0 +1,1 @@
+"""Geometry kernels of the simulator."""

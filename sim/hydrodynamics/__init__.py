@@ -1,0 +1,1 @@
+"""Hydrodynamics kernels of the simulator."""

@@ -1,0 +1,1 @@
+"""Observables kernels of the simulator."""
