@@ -1,1 +1,35 @@
-"""Stokesian-dynamics simulator of ideally conductive spheres under shear (public API)."""
+"""Stokesian-dynamics simulator of ideally conductive spheres under shear (public API).
+
+Units: sphere radius ``a = 1``, viscosity ``eta = 1``, shear rate ``gammadot = 1`` (time is strain, stress
+is in ``eta gammadot``). Axes: x flow, y velocity gradient, z vorticity.
+
+``dipenv`` and ``agents`` use only the names exported here.
+"""
+
+__version__ = "0.1.0"
+
+from sim.config import SimulationConfig
+from sim.geometry.box import LeesEdwardsBox
+from sim.geometry.configurations import box_length_for, random_packing
+from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
+from sim.run import run_simulation
+from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords
+from sim.state import SimulationState
+
+__all__ = [
+    "STRESS_CONTRIBUTIONS",
+    "BlockAverage",
+    "LeesEdwardsBox",
+    "RheologyResult",
+    "Simulation",
+    "SimulationConfig",
+    "SimulationError",
+    "SimulationState",
+    "StepRecords",
+    "__version__",
+    "block_average",
+    "box_length_for",
+    "random_packing",
+    "rheology",
+    "run_simulation",
+]

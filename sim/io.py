@@ -1,0 +1,135 @@
+"""Files a run writes: parameters, stress time series, checkpoints, final state, result.
+
+A run directory holds:
+
+================== ==================================================================================
+``params.json``    every parameter of the run (``SimulationConfig``), box side, package versions
+``timeseries.csv`` per step: strain, min gap, solver iterations, overlap sweeps, eta_r, N1, N2 and the
+                   six independent stress components of every contribution (units eta gammadot)
+``checkpoint.npz`` state + records + parameters; ``--resume`` continues from it bit for bit
+``final_state.npz`` positions and the rest of the state at the end, with the box side and strain
+``result.json``    averaged rheology with standard errors (the CLI's ``--json`` line)
+``stress.png``     eta_r, N1, N2 against strain
+================== ==================================================================================
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.config import SimulationConfig
+from sim.observables.stress import STRESS_CONTRIBUTIONS, rheology
+from sim.simulation import StepRecords
+from sim.state import SimulationState
+
+_COMPONENTS = (("xx", 0, 0), ("yy", 1, 1), ("zz", 2, 2), ("xy", 0, 1), ("xz", 0, 2), ("yz", 1, 2))
+
+
+def versions() -> dict[str, str]:
+    """Versions of the interpreter and the numerical stack (written next to results)."""
+    import numba
+    import scipy
+
+    from sim import __version__
+
+    return {
+        "sim": __version__,
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "numba": numba.__version__,
+    }
+
+
+def write_json(path: Path, data: dict[str, Any]) -> None:
+    """Write ``data`` as indented JSON (``inf``/``nan`` as strings, so the file stays standard JSON)."""
+
+    def clean(value: Any) -> Any:
+        if isinstance(value, float) and not np.isfinite(value):
+            return str(value)
+        if isinstance(value, dict):
+            return {k: clean(v) for k, v in value.items()}
+        if isinstance(value, list | tuple):
+            return [clean(v) for v in value]
+        return value
+
+    path.write_text(json.dumps(clean(data), indent=2) + "\n")
+
+
+def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | None = None) -> None:
+    """``params.json``: the configuration, derived quantities and versions."""
+    write_json(
+        out_dir / "params.json",
+        {
+            "config": config.to_dict(),
+            "box_length": config.box_length,
+            "n_steps": config.n_steps,
+            "units": "a = eta = gammadot = 1; stress in eta*gammadot; time in strain",
+            "command": command,
+            "versions": versions(),
+        },
+    )
+
+
+def write_timeseries(path: Path, records: StepRecords) -> None:
+    """``timeseries.csv`` with one row per step (see the module docstring for columns)."""
+    total = records.total_stress
+    eta, n1, n2 = rheology(total)
+    columns = [
+        np.arange(records.strain.size),
+        records.strain,
+        records.min_gap,
+        records.solver_iterations,
+        records.overlap_sweeps,
+        eta,
+        n1,
+        n2,
+    ]
+    header = ["step", "strain", "min_gap", "solver_iterations", "overlap_sweeps", "eta_r", "N1", "N2"]
+    for index, name in enumerate(STRESS_CONTRIBUTIONS):
+        for label, a, b in _COMPONENTS:
+            columns.append(records.stress[:, index, a, b])
+            header.append(f"{name}_{label}")
+    for label, a, b in _COMPONENTS:
+        columns.append(total[:, a, b])
+        header.append(f"total_{label}")
+    np.savetxt(
+        path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt="%.10g"
+    )
+
+
+def save_checkpoint(
+    path: Path, config: SimulationConfig, state: SimulationState, records: StepRecords, wall_seconds: float
+) -> None:
+    """Atomically write state, records and parameters to ``path``."""
+    tmp = path.with_name(path.name + ".tmp.npz")
+    np.savez(
+        tmp,
+        config=np.array(json.dumps(config.to_dict())),
+        wall_seconds=np.array(wall_seconds),
+        **state.arrays(),
+        **records.arrays(),
+    )
+    tmp.replace(path)
+
+
+def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, StepRecords, float]:
+    """Inverse of :func:`save_checkpoint`."""
+    with np.load(path) as data:
+        config = SimulationConfig.from_dict(json.loads(str(data["config"])))
+        return (
+            config,
+            SimulationState.from_arrays(data),
+            StepRecords.from_arrays(data),
+            float(data["wall_seconds"]),
+        )
+
+
+def save_final_state(path: Path, config: SimulationConfig, state: SimulationState) -> None:
+    """``final_state.npz``: the state plus the box side."""
+    np.savez(path, box_length=np.array(config.box_length), **state.arrays())

@@ -1,0 +1,520 @@
+"""Tests of the equal-sphere resistance scalars, the model's lubrication functions and the dense reference.
+
+Independent numbers: the exact two-sphere table ``reference_data/two_sphere_resistance_equal.txt``
+(Townsend 2023; Lamb's-method rows from Wilson 2013; provenance in ``reference_data/README.md``),
+the accuracy map of ``/work/shared/resistance_functions.md`` section 4, the isolated-sphere Stokes
+drag (6 pi, 8 pi, 20/3 pi) and the leading-order squeeze/strain force of section 1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from dense_reference import (
+    SYMMETRIC_TRACELESS_IDENTITY,
+    dense_grand_resistance,
+    dense_pair_list,
+    load_reference_table,
+    pair_blocks,
+    tensor_a,
+    tensor_m,
+)
+
+from sim.hydrodynamics import resistance_functions as rf
+from sim.hydrodynamics.resistance_functions import (
+    DEFAULT_LUBRICATION_CUTOFF,
+    DEFAULT_LUBRICATION_REGULARISATION,
+    SCALAR_NAMES,
+    far_field_scalars,
+    lubrication_scalars,
+    near_field_scalars,
+    scalars_as_dict,
+)
+
+TABLE = load_reference_table()
+# Functions that contain the isolated-sphere value (tend to 1 at large s).
+SELF_FUNCTIONS = ("XA11", "YA11", "XC11", "YC11", "XM11", "YM11", "ZM11")
+ISOLATED_VALUES = np.array([1.0 if name in SELF_FUNCTIONS else 0.0 for name in SCALAR_NAMES])
+# Functions with a 1/xi or log(1/xi) term (all but X^C and Z^M).
+SINGULAR_FUNCTIONS = tuple(name for name in SCALAR_NAMES if name[:2] not in ("XC", "ZM"))
+DRAG_DIAGONAL_TWO_SPHERES = np.diag(np.tile([6.0 * np.pi] * 3 + [8.0 * np.pi] * 3, 2))
+
+
+def table_row(s: float) -> np.ndarray:
+    """Exact scalars at tabulated distance ``s`` in SCALAR_NAMES order."""
+    index = int(np.flatnonzero(np.isclose(TABLE["s"], s, rtol=0.0, atol=1e-12))[0])
+    return np.array([TABLE[name][index] for name in SCALAR_NAMES])
+
+
+def random_unit_vector(rng: np.random.Generator) -> np.ndarray:
+    vector = rng.normal(size=3)
+    return vector / np.linalg.norm(vector)
+
+
+def random_strain(rng: np.random.Generator) -> np.ndarray:
+    """Random symmetric traceless 3x3 tensor."""
+    matrix = rng.normal(size=(3, 3))
+    matrix = 0.5 * (matrix + matrix.T)
+    return matrix - np.trace(matrix) / 3.0 * np.eye(3)
+
+
+def two_sphere_lubrication_matrix(separation: np.ndarray, scalar_fn) -> np.ndarray:
+    """12x12 pair part of R_FU (drag diagonal removed) for one pair 0 -> 1."""
+    r_fu, _, _, _ = dense_grand_resistance(
+        np.zeros((2, 3)), np.array([[0, 1]]), separation[None, :], scalar_fn
+    )
+    return r_fu - DRAG_DIAGONAL_TWO_SPHERES
+
+
+# --------------------------------------------------------------------------------------------------
+# Names, indices, helpers
+# --------------------------------------------------------------------------------------------------
+
+
+def test_scalar_names_and_index_constants() -> None:
+    """SCALAR_NAMES has the 22 names once each; every I_<name> constant is its position."""
+    assert len(SCALAR_NAMES) == 22 == len(set(SCALAR_NAMES))
+    for index, name in enumerate(SCALAR_NAMES):
+        assert getattr(rf, f"I_{name}") == index
+    values = np.arange(22, dtype=np.float64)
+    labelled = scalars_as_dict(values)
+    assert list(labelled) == list(SCALAR_NAMES)
+    assert labelled["ZM12"] == 21.0
+    with pytest.raises(ValueError, match="22"):
+        scalars_as_dict(np.zeros(21))
+
+
+def test_reference_table_loaded() -> None:
+    """Table has 38 distances from 2.00001 to 4.5 and the spot values printed in section 3 at s = 4.5."""
+    assert TABLE["s"].shape == (38,)
+    assert TABLE["s"][0] == pytest.approx(2.00001) and TABLE["s"][-1] == pytest.approx(4.5)
+    row = scalars_as_dict(table_row(4.5))
+    assert row["XA11"] == 1.12811192 and row["ZM12"] == -0.00108382797
+
+
+# --------------------------------------------------------------------------------------------------
+# Near-field forms against the exact table
+# --------------------------------------------------------------------------------------------------
+
+NEAR_CONTACT_ROWS = [float(s) for s in TABLE["s"] if s <= 2.02 + 1e-12]
+
+
+@pytest.mark.parametrize("s", NEAR_CONTACT_ROWS)
+def test_near_field_matches_table_near_contact(s: float) -> None:
+    """Rows 2.00001 <= s <= 2.02 were generated with the same corrected formulas (Townsend 2023).
+
+    Tolerance 1e-6 relative: the table prints 9 significant digits and the constants in
+    resistance_functions.md section 2 have 8 decimals, so agreement is ~1e-7 (transcription check).
+    """
+    np.testing.assert_allclose(near_field_scalars(s - 2.0), table_row(s), rtol=1e-6, atol=0.0)
+
+
+# X^A, X^G, X^M: relative error <= 0.1 % at xi = 0.025 and <= 0.22 % at 0.05 (section 4: "<= 0.1 %",
+# XG11 -0.018 on 8.09, XA11 -0.006 on 6.68) -> 0.5 %. All other functions: absolute, from the worst
+# absolute errors listed in section 4 (0.007 on YB11 at 2.025; 0.018 at 2.05) -> 0.01 and 0.02.
+LAMB_ROW_TOLERANCES = [(2.025, 5e-3, 0.01), (2.05, 5e-3, 0.02)]
+
+
+@pytest.mark.parametrize(("s", "relative_x", "absolute_other"), LAMB_ROW_TOLERANCES)
+def test_near_field_against_lamb_method_rows(s: float, relative_x: float, absolute_other: float) -> None:
+    """Independent Lamb's-method values (Wilson 2013) just beyond the near-contact range."""
+    exact = scalars_as_dict(table_row(s))
+    near = scalars_as_dict(near_field_scalars(s - 2.0))
+    for name in SCALAR_NAMES:
+        if name[:2] in ("XA", "XG", "XM"):
+            assert abs(near[name] - exact[name]) <= relative_x * abs(exact[name]), name
+        else:
+            assert abs(near[name] - exact[name]) <= absolute_other, name
+
+
+# --------------------------------------------------------------------------------------------------
+# Far-field series against the exact table
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("s", [4.0, 4.5])
+def test_far_field_at_large_separation(s: float) -> None:
+    """Section 4: the truncated series are within 1e-4 of the exact values at s = 4 (worst XG11 7.3e-5;
+    X^C keeps only its leading terms, 5.2e-5 at s = 4). Absolute tolerance 1e-4."""
+    np.testing.assert_allclose(far_field_scalars(s), table_row(s), rtol=0.0, atol=1e-4)
+
+
+def test_far_field_at_three_radii() -> None:
+    """Section 4: at s = 3 the series are within about 1 % (XG11 1.3 %); tolerance 1.5 % relative."""
+    np.testing.assert_allclose(far_field_scalars(3.0), table_row(3.0), rtol=1.5e-2, atol=0.0)
+
+
+# Accuracy map of section 4: (s, form, name, documented signed absolute error, half unit of the
+# last printed digit). The near and far asymptotics do NOT overlap in 2.1 < s < 3; the table values
+# lie between them and these numbers document by how much each misses.
+ACCURACY_MAP = [
+    (2.05, "near", "XG11", -0.018, 5e-4),
+    (2.05, "near", "YB11", 0.014, 5e-4),
+    (2.05, "near", "XA11", -0.006, 5e-4),
+    (2.05, "far", "XA11", -3.9, 5e-2),
+    (2.1, "near", "XG11", -0.036, 5e-4),
+    (2.1, "near", "YB11", 0.029, 5e-4),
+    (2.1, "near", "XA11", -0.012, 5e-4),
+    (2.2, "near", "XG11", -0.075, 5e-4),
+    (2.2, "near", "YB11", 0.058, 5e-4),
+    (2.2, "far", "XA11", -0.41, 5e-3),
+    (2.5, "near", "XG11", -0.20, 5e-3),
+    (2.5, "far", "XG11", -0.066, 5e-4),
+    (2.5, "far", "XA11", -0.034, 5e-4),
+]
+
+
+@pytest.mark.parametrize(("s", "form", "name", "documented_error", "rounding"), ACCURACY_MAP)
+def test_accuracy_map_of_section_4(
+    s: float, form: str, name: str, documented_error: float, rounding: float
+) -> None:
+    """Reproduce each entry of the section 4 table to the digits it prints."""
+    values = near_field_scalars(s - 2.0) if form == "near" else far_field_scalars(s)
+    error = scalars_as_dict(values)[name] - scalars_as_dict(table_row(s))[name]
+    assert abs(error - documented_error) <= rounding
+
+
+def test_accuracy_map_relative_statements() -> None:
+    """Section 4 percentages: near XA11 0.3 % at s = 2.1, near XG11 3.6 % at 2.2 and ~26 % at 2.5,
+    far XG11 8 % and far XA11 2 % at 2.5, near-field errors at 2.025 of 0.007 (YB11), 0.004 (YG11),
+    0.001 (YH11). Bounds bracket the printed (rounded) numbers."""
+
+    def relative(form: str, s: float, name: str) -> float:
+        values = near_field_scalars(s - 2.0) if form == "near" else far_field_scalars(s)
+        exact = scalars_as_dict(table_row(s))[name]
+        return abs(scalars_as_dict(values)[name] - exact) / abs(exact)
+
+    assert 0.0025 < relative("near", 2.1, "XA11") < 0.0035
+    assert 0.035 < relative("near", 2.2, "XG11") < 0.037
+    assert 0.24 < relative("near", 2.5, "XG11") < 0.27  # 25.1 %; section 4 prints 26 %
+    assert 0.075 < relative("far", 2.5, "XG11") < 0.09  # 8.4 %
+    assert 0.015 < relative("far", 2.5, "XA11") < 0.02  # 1.95 %
+    near_2025 = scalars_as_dict(near_field_scalars(0.025))
+    exact_2025 = scalars_as_dict(table_row(2.025))
+    for name, documented in (("YB11", 0.007), ("YG11", 0.004), ("YH11", 0.001)):
+        assert abs(abs(near_2025[name] - exact_2025[name]) - documented) <= 5e-4, name
+
+
+def test_near_and_far_forms_each_win_on_their_side() -> None:
+    """Which asymptotic form is closer to the exact table: the near forms for all 22 functions at
+    s <= 2.05, the far series for all 22 at s >= 2.6 (in between the winner depends on the function,
+    which is why neither is used there in full; section 4)."""
+    for s in TABLE["s"]:
+        exact = table_row(float(s))
+        near_error = np.abs(near_field_scalars(float(s) - 2.0) - exact)
+        far_error = np.abs(far_field_scalars(float(s)) - exact)
+        if s <= 2.05 + 1e-12:
+            assert np.all(near_error < far_error), s
+        if s >= 2.6 - 1e-12:
+            assert np.all(far_error < near_error), s
+
+
+# --------------------------------------------------------------------------------------------------
+# The model's lubrication functions
+# --------------------------------------------------------------------------------------------------
+
+
+def test_lubrication_vanishes_at_and_beyond_cutoff() -> None:
+    """f(xi) = 0 exactly for xi >= xi_cut; continuous there: |f(xi_cut (1 - 1e-9))| < 1e-6
+    (largest slope 3/8 / (xi_cut + delta)^2 ~ 1.5 times a step of 5e-10 is ~1e-9)."""
+    cut, delta = DEFAULT_LUBRICATION_CUTOFF, DEFAULT_LUBRICATION_REGULARISATION
+    for xi in (cut, cut + 1e-12, 0.7, 2.5, 10.0):
+        assert np.all(lubrication_scalars(xi, cut, delta) == 0.0)
+    for delta_value in (0.0, delta):
+        just_inside = lubrication_scalars(cut * (1.0 - 1e-9), cut, delta_value)
+        assert np.max(np.abs(just_inside)) < 1e-6
+    # Every function keeps the sign of its singular coefficient inside the cut-off.
+    inside = lubrication_scalars(0.1, cut, delta)
+    near = near_field_scalars(1e-8)
+    for k, name in enumerate(SCALAR_NAMES):
+        if name in SINGULAR_FUNCTIONS:
+            assert np.sign(inside[k]) == np.sign(near[k]), name
+        else:
+            assert inside[k] == 0.0, name
+
+
+def test_lubrication_leading_squeeze_behaviour() -> None:
+    """(XA11 - XA12) xi -> 1/2 as xi -> 0 (squeeze film, Jeffrey & Onishi 1984), delta = 0.
+    At xi = 1e-8 the log and shift terms contribute ~xi (0.45 ln(0.5/xi) + 1) ~ 2e-7: tolerance 1e-6."""
+    xi = 1e-8
+    values = scalars_as_dict(lubrication_scalars(xi, DEFAULT_LUBRICATION_CUTOFF, 0.0))
+    assert (values["XA11"] - values["XA12"]) * xi == pytest.approx(0.5, abs=1e-6)
+    assert (values["XG11"] - values["XG12"]) * xi == pytest.approx(0.75, abs=1e-6)
+    assert (values["XM11"] + values["XM12"]) * xi == pytest.approx(0.3, abs=1e-6)
+
+
+def test_lubrication_singular_parts_match_near_forms() -> None:
+    """lubrication - near_field tends to a constant as xi -> 0 for every function (delta = 0): the
+    1/xi and log(1/xi) coefficients coincide. The difference at xi = 1e-6 and 1e-7 must agree to
+    1e-4; the known xi log(1/xi) terms (coefficients <= 0.21) change it by < 3e-6 between the two,
+    and rounding of 1/xi ~ 1e7 gives ~1e-9."""
+    cut = DEFAULT_LUBRICATION_CUTOFF
+    first = lubrication_scalars(1e-6, cut, 0.0) - near_field_scalars(1e-6)
+    second = lubrication_scalars(1e-7, cut, 0.0) - near_field_scalars(1e-7)
+    np.testing.assert_allclose(first, second, rtol=0.0, atol=1e-4)
+    # Without the singular terms the difference would grow like 1/xi or log(1/xi) (sanity of the test):
+    assert abs(near_field_scalars(1e-6)[rf.I_XA11] - near_field_scalars(1e-7)[rf.I_XA11]) > 1e6
+
+
+def test_lubrication_regularisation_is_a_gap_shift() -> None:
+    """f(xi; xi_cut, delta) = f(xi + delta; xi_cut + delta, 0) by construction; finite at contact."""
+    cut, delta = DEFAULT_LUBRICATION_CUTOFF, DEFAULT_LUBRICATION_REGULARISATION
+    for xi in (0.0, 1e-4, 0.03, 0.3):
+        np.testing.assert_allclose(
+            lubrication_scalars(xi, cut, delta), lubrication_scalars(xi + delta, cut + delta, 0.0), rtol=1e-13
+        )
+    at_contact = scalars_as_dict(lubrication_scalars(0.0, cut, delta))
+    expected = 0.25 * (1.0 / delta - 1.0 / (cut + delta)) + 9.0 / 40.0 * np.log((cut + delta) / delta)
+    assert at_contact["XA11"] == pytest.approx(expected, rel=1e-14)
+
+
+# --------------------------------------------------------------------------------------------------
+# Positivity of the pair matrices
+# --------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("delta", [0.0, DEFAULT_LUBRICATION_REGULARISATION])
+def test_lubrication_pair_matrix_positive_semidefinite(delta: float) -> None:
+    """The singular-only pair matrix (12x12 R_FU minus drag) is PSD for all gaps and orientations.
+    Tolerance: min eigenvalue >= -1e-9 max eigenvalue (round-off of eigh is ~1e-15 relative)."""
+    rng = np.random.default_rng(20240611)
+    cut = DEFAULT_LUBRICATION_CUTOFF
+    for xi in np.logspace(-6.0, np.log10(0.49), 25):
+        for _ in range(4):
+            separation = (2.0 + xi) * random_unit_vector(rng)
+            matrix = two_sphere_lubrication_matrix(
+                separation, lambda s: lubrication_scalars(s - 2.0, cut, delta)
+            )
+            np.testing.assert_allclose(matrix, matrix.T, rtol=0.0, atol=1e-12 * np.abs(matrix).max())
+            eigenvalues = np.linalg.eigvalsh(matrix)
+            assert eigenvalues[0] >= -1e-9 * eigenvalues[-1], (xi, eigenvalues[0], eigenvalues[-1])
+
+
+def test_two_sphere_resistance_with_drag_is_symmetric_positive_definite() -> None:
+    """Drag + lubrication R_FU of two spheres: symmetric to 1e-12 relative and positive definite
+    (smallest eigenvalue at least of order the drag, > 1 here since drag is 6 pi)."""
+    rng = np.random.default_rng(7)
+    for xi in (1e-5, 1e-3, 0.1, 0.45):
+        separation = (2.0 + xi) * random_unit_vector(rng)
+        r_fu, _, _, _ = dense_grand_resistance(
+            np.zeros((2, 3)),
+            np.array([[0, 1]]),
+            separation[None, :],
+            lambda s: lubrication_scalars(
+                s - 2.0, DEFAULT_LUBRICATION_CUTOFF, DEFAULT_LUBRICATION_REGULARISATION
+            ),
+        )
+        np.testing.assert_allclose(r_fu, r_fu.T, rtol=0.0, atol=1e-12 * np.abs(r_fu).max())
+        assert np.linalg.eigvalsh(r_fu)[0] > 1.0
+
+
+def test_near_field_constants_make_pair_matrix_indefinite() -> None:
+    """Why the constants are dropped (module docstring): with the full near-contact forms minus the
+    isolated values, the pair matrix at xi = 0.01 has the eigenvalue 6 pi (XA11 - 1 + XA12) =
+    6 pi (0.99541917 - 1 - 0.35015349) = -0.3547 * 6 pi (collective translation along the line of
+    centres). Check -0.36 < lambda_min / (6 pi) < -0.34."""
+    rng = np.random.default_rng(3)
+    separation = 2.01 * random_unit_vector(rng)
+    matrix = two_sphere_lubrication_matrix(
+        separation, lambda s: near_field_scalars(s - 2.0) - ISOLATED_VALUES
+    )
+    lowest = np.linalg.eigvalsh(matrix)[0] / (6.0 * np.pi)
+    assert -0.36 < lowest < -0.34
+    # The mode is the collective translation along d (both spheres, no rotation).
+    d = separation / np.linalg.norm(separation)
+    mode = np.concatenate([d, np.zeros(3), d, np.zeros(3)]) / np.sqrt(2.0)
+    assert mode @ matrix @ mode / (6.0 * np.pi) == pytest.approx(lowest, rel=1e-9)
+
+
+# --------------------------------------------------------------------------------------------------
+# Dense reference sanity
+# --------------------------------------------------------------------------------------------------
+
+
+def test_tensor_forms_reduce_to_identities() -> None:
+    """With all scalars 1 the A/C form is the identity and the M form is the identity on symmetric
+    traceless tensors, for any d (checks the transcription of the tensor forms; exact to 1e-14)."""
+    rng = np.random.default_rng(11)
+    d = random_unit_vector(rng)
+    np.testing.assert_allclose(tensor_a(1.0, 1.0, d), np.eye(3), atol=1e-14)
+    np.testing.assert_allclose(tensor_m(1.0, 1.0, 1.0, d), SYMMETRIC_TRACELESS_IDENTITY, atol=1e-14)
+
+
+def test_single_sphere_stokes_drag() -> None:
+    """Isolated sphere: F = -6 pi U, T = -8 pi Omega, S = (20/3) pi E (Stokes; Batchelor 1970), 1e-13."""
+    rng = np.random.default_rng(5)
+    r_fu, r_fe, r_su, r_se = dense_grand_resistance(
+        np.zeros((1, 3)), np.zeros((0, 2), dtype=np.int64), np.zeros((0, 3)), far_field_scalars
+    )
+    velocity = rng.normal(size=6)
+    strain = random_strain(rng)
+    force_torque = -r_fu @ velocity + np.einsum("mij,ij->m", r_fe, strain)
+    stresslet = -np.einsum("aijm,m->aij", r_su, velocity) + np.einsum("aijkl,kl->aij", r_se, strain)
+    np.testing.assert_allclose(force_torque[:3], -6.0 * np.pi * velocity[:3], rtol=1e-13)
+    np.testing.assert_allclose(force_torque[3:], -8.0 * np.pi * velocity[3:], rtol=1e-13)
+    np.testing.assert_allclose(stresslet[0], 20.0 / 3.0 * np.pi * strain, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("case", ["squeeze", "strain"])
+def test_pair_force_matches_leading_order_formula(case: str) -> None:
+    """Section 1: F1 = (6 pi/(4 xi)) [-n n.U1' + n n.U2' + 2 n (n.E.n)] at leading order.
+    xi = 1e-4, delta = 0, lubrication scalars: the neglected log and shift terms are
+    ~(9/40 ln(5e3) + 0.5)/(1/(4 xi)) ~ 1e-3 of the result, tolerance 1e-2 relative."""
+    rng = np.random.default_rng(13)
+    xi = 1e-4
+    n = np.array([1.0, 0.0, 0.0])
+    velocity = np.zeros(12)
+    strain = np.zeros((3, 3))
+    if case == "squeeze":
+        velocity[0:3] = [0.5, 0.0, 0.0]  # relative squeeze only: U1 = -U2 along n
+        velocity[6:9] = [-0.5, 0.0, 0.0]
+    else:
+        strain = random_strain(rng)
+    r_fu, r_fe, _, _ = dense_grand_resistance(
+        np.zeros((2, 3)),
+        np.array([[0, 1]]),
+        ((2.0 + xi) * n)[None, :],
+        lambda s: lubrication_scalars(s - 2.0, DEFAULT_LUBRICATION_CUTOFF, 0.0),
+    )
+    force_torque = -r_fu @ velocity + np.einsum("mij,ij->m", r_fe, strain)
+    u1, u2 = velocity[0:3], velocity[6:9]
+    leading = 6.0 * np.pi / (4.0 * xi) * (-n * (n @ u1) + n * (n @ u2) + 2.0 * n * (n @ strain @ n))
+    np.testing.assert_allclose(force_torque[0:3], leading, rtol=1e-2, atol=1e-2 * np.abs(leading).max())
+    # Antisymmetric motion/strain of equal spheres: F2 = -F1 (exact up to round-off).
+    np.testing.assert_allclose(force_torque[6:9], -force_torque[0:3], rtol=1e-12, atol=1e-9)
+
+
+def random_cluster(rng: np.random.Generator, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Loose random cluster in free space with all pairs closer than 4.4 listed."""
+    positions = np.zeros((count, 3))
+    placed = 1
+    while placed < count:
+        candidate = positions[rng.integers(placed)] + rng.uniform(2.02, 2.8) * random_unit_vector(rng)
+        if np.all(np.linalg.norm(positions[:placed] - candidate, axis=1) > 2.01):
+            positions[placed] = candidate
+            placed += 1
+    pairs = [(i, j) for i in range(count) for j in range(i + 1, count)]
+    pairs = [(i, j) for i, j in pairs if np.linalg.norm(positions[j] - positions[i]) < 4.4]
+    pair_array = np.array(pairs, dtype=np.int64)
+    return positions, pair_array, positions[pair_array[:, 1]] - positions[pair_array[:, 0]]
+
+
+def far_field_pair_part(s: float) -> np.ndarray:
+    """Far-field scalars minus the isolated sphere: nonzero in all 22 entries (exercises every tensor)."""
+    return far_field_scalars(s) - ISOLATED_VALUES
+
+
+def test_grand_resistance_symmetry_and_reciprocity() -> None:
+    """R_FU = R_FU^T; reciprocity sum_a R_SU[a, i, j, m] = R_FE[m, i, j] (the same E acts on every
+    particle, so R_FE is summed over the partner); sum_a R_SE[a] symmetric under (ij) <-> (kl).
+    Relative 1e-12 (pure round-off)."""
+    rng = np.random.default_rng(17)
+    positions, pairs, separations = random_cluster(rng, 5)
+    for scalar_fn in (far_field_pair_part, lambda s: lubrication_scalars(s - 2.0, 0.5, 1e-3)):
+        r_fu, r_fe, r_su, r_se = dense_grand_resistance(positions, pairs, separations, scalar_fn)
+        np.testing.assert_allclose(r_fu, r_fu.T, rtol=0.0, atol=1e-12 * np.abs(r_fu).max())
+        transposed = np.einsum("aijm->mij", r_su)
+        np.testing.assert_allclose(transposed, r_fe, rtol=0.0, atol=1e-12 * np.abs(r_fe).max())
+        total_se = r_se.sum(axis=0)
+        np.testing.assert_allclose(
+            total_se, np.einsum("ijkl->klij", total_se), atol=1e-12 * np.abs(total_se).max()
+        )
+
+
+def test_label_swap_invariance() -> None:
+    """Listing a pair as (j, i) with d -> -d must give the same tensors (the 'robust alternative' of
+    section 1); checks the equal-sphere label rules B22 = -B11, G21 = -G12, H22 = H11, etc.
+    Exact up to round-off, 1e-12 relative."""
+    rng = np.random.default_rng(19)
+    separation = 2.3 * random_unit_vector(rng)
+    blocks = pair_blocks(far_field_pair_part(2.3), separation / 2.3)
+    swapped = pair_blocks(far_field_pair_part(2.3), -separation / 2.3)
+    for family in ("A", "B", "C", "G", "H", "M"):
+        for alpha in range(2):
+            for beta in range(2):
+                np.testing.assert_allclose(
+                    blocks[family][alpha][beta], swapped[family][1 - alpha][1 - beta], rtol=0.0, atol=1e-12
+                )
+    forward = dense_grand_resistance(
+        np.zeros((2, 3)), np.array([[0, 1]]), separation[None, :], far_field_pair_part
+    )
+    backward = dense_grand_resistance(
+        np.zeros((2, 3)), np.array([[1, 0]]), -separation[None, :], far_field_pair_part
+    )
+    for first, second in zip(forward, backward, strict=True):
+        np.testing.assert_allclose(first, second, rtol=0.0, atol=1e-12 * np.abs(first).max())
+
+
+# --------------------------------------------------------------------------------------------------
+# Brute-force Lees-Edwards pair list
+# --------------------------------------------------------------------------------------------------
+
+# L = 10, offset 3: (0, 1) are close only through the sheared y boundary (without the offset their
+# distance is |(-3, 0.8, 0)| = 3.1 > 2.5); (2, 3) across x; (4, 5) across z; (6, 7) across the
+# y-x-z corner (image of 7 at (7.9 + 3 - 10, 0.2 + 10, 9.8 - 10)).
+HAND_POSITIONS = np.array(
+    [
+        [7.0, 9.5, 5.0],
+        [4.0, 0.3, 5.0],
+        [9.8, 5.0, 5.0],
+        [0.4, 5.5, 5.0],
+        [5.0, 5.0, 9.9],
+        [5.5, 5.0, 0.2],
+        [1.0, 9.7, 0.1],
+        [7.9, 0.2, 9.8],
+    ]
+)
+HAND_PAIRS = np.array([[0, 1], [2, 3], [4, 5], [6, 7]])
+HAND_SEPARATIONS = np.array([[0.0, 0.8, 0.0], [0.6, 0.5, 0.0], [0.5, 0.0, 0.3], [-0.1, 0.5, -0.3]])
+
+
+def test_dense_pair_list_hand_configurations() -> None:
+    """Hand-computed pairs and separations (x_j - x_i, nearest image), to 1e-12."""
+    pairs, separations = dense_pair_list(HAND_POSITIONS, 10.0, 3.0, 2.5)
+    np.testing.assert_array_equal(pairs, HAND_PAIRS)
+    np.testing.assert_allclose(separations, HAND_SEPARATIONS, atol=1e-12)
+    # The same configuration with the offset given modulo L and particle 1 unwrapped above the box
+    # (at y + L it sits at x + offset).
+    unwrapped = HAND_POSITIONS.copy()
+    unwrapped[1] = [4.0 + 3.0, 10.3, 5.0]
+    pairs, separations = dense_pair_list(unwrapped, 10.0, 13.0, 2.5)
+    np.testing.assert_array_equal(pairs, HAND_PAIRS)
+    np.testing.assert_allclose(separations, HAND_SEPARATIONS, atol=1e-12)
+    # Without the offset pair (0, 1) is not listed; with offset -3 the partner of 0 sits at x = 0.
+    pairs, _ = dense_pair_list(HAND_POSITIONS, 10.0, 0.0, 2.5)
+    assert [0, 1] not in pairs.tolist()
+    shifted = HAND_POSITIONS.copy()
+    shifted[1] = [0.0, 0.3, 5.0]
+    pairs, separations = dense_pair_list(shifted, 10.0, -3.0, 2.5)
+    assert pairs.tolist()[0] == [0, 1]
+    np.testing.assert_allclose(separations[0], [0.0, 0.8, 0.0], atol=1e-12)
+    with pytest.raises(ValueError, match="cutoff"):
+        dense_pair_list(HAND_POSITIONS, 10.0, 3.0, 5.0)
+
+
+def test_dense_pair_list_matches_wide_lattice_search() -> None:
+    """Random configuration: same pairs and separations as a search over 5^3 sheared-lattice images
+    (a different enumeration); separations to 1e-12."""
+    rng = np.random.default_rng(23)
+    length, offset, cutoff = 8.0, 2.7, 3.0
+    positions = rng.uniform(0.0, length, size=(30, 3))
+    pairs, separations = dense_pair_list(positions, length, offset, cutoff)
+    lattice = np.array(
+        [
+            [nx * length + ny * offset, ny * length, nz * length]
+            for nx in range(-2, 3)
+            for ny in range(-2, 3)
+            for nz in range(-2, 3)
+        ]
+    )
+    expected_pairs, expected_separations = [], []
+    for i in range(len(positions)):
+        for j in range(i + 1, len(positions)):
+            candidates = positions[j] + lattice - positions[i]
+            norms = np.linalg.norm(candidates, axis=1)
+            if norms.min() < cutoff:
+                expected_pairs.append([i, j])
+                expected_separations.append(candidates[np.argmin(norms)])
+    assert len(expected_pairs) > 10
+    np.testing.assert_array_equal(pairs, np.array(expected_pairs))
+    np.testing.assert_allclose(separations, np.array(expected_separations), atol=1e-12)
