@@ -8,6 +8,10 @@ is in ``eta gammadot``). Axes: x flow, y velocity gradient, z vorticity.
 
 __version__ = "0.1.0"
 
+from sim.numba_cache import configure_numba_cache
+
+NUMBA_CACHE_DIR = configure_numba_cache()
+
 from sim.config import SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing

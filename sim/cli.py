@@ -14,7 +14,8 @@ import math
 import sys
 from collections.abc import Sequence
 
-from sim.config import DEFAULT_TIME_STEP, MAX_VOLUME_FRACTION, SimulationConfig
+from sim.config import DEFAULT_TIME_STEP, SimulationConfig
+from sim.geometry.configurations import MAX_VOLUME_FRACTION
 
 
 class _Parser(argparse.ArgumentParser):

@@ -12,14 +12,11 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from sim.geometry.configurations import box_length_for
+from sim.geometry.configurations import MAX_VOLUME_FRACTION, box_length_for
 from sim.hydrodynamics.resistance_functions import (
     DEFAULT_LUBRICATION_CUTOFF,
     DEFAULT_LUBRICATION_REGULARISATION,
 )
-
-MAX_VOLUME_FRACTION = 0.6
-"""Largest accepted volume fraction (random packings are generated up to random close packing's reach)."""
 
 DEFAULT_TIME_STEP = 2.0e-3
 """Default step in strain units: particles move about 0.1% of the mean spacing per step at phi = 0.45
@@ -53,7 +50,8 @@ class SimulationConfig:
         transient_strain: strain discarded before averaging; ``None`` means 10, or half the run if the
             run is shorter than 20.
         n_blocks: number of blocks for block-average standard errors (>= 2).
-        lubrication_cutoff: gap below which pair lubrication acts (units a), in (0, 2].
+        lubrication_cutoff: gap below which pair lubrication acts (units a), in (0, 0.9] (the log terms
+            must stay positive: cut-off + regularisation < 1).
         lubrication_regularisation: delta in xi -> xi + delta (units a), in [0, 0.1].
         repulsion_range: sigma of the repulsive force (units a), in (0, 0.1].
         repulsion_shear_rate_ratio: gammadot* = 6 pi eta a^2 gammadot / F0, > 0 (Sierou & Brady 2002: 5000).
@@ -108,7 +106,7 @@ class SimulationConfig:
             _check_range("transient_strain", self.transient_strain, 0.0, max(self.strain, 0.0), False, True)
         if isinstance(self.n_blocks, bool) or not isinstance(self.n_blocks, int) or self.n_blocks < 2:
             raise ValueError(f"n_blocks must be an integer >= 2, got {self.n_blocks!r}")
-        _check_range("lubrication_cutoff", self.lubrication_cutoff, 0.0, 2.0, True, False)
+        _check_range("lubrication_cutoff", self.lubrication_cutoff, 0.0, 0.9, True, False)
         _check_range("lubrication_regularisation", self.lubrication_regularisation, 0.0, 0.1, False, False)
         _check_range("repulsion_range", self.repulsion_range, 0.0, 0.1, True, False)
         _check_range("repulsion_shear_rate_ratio", self.repulsion_shear_rate_ratio, 0.0, math.inf, True, True)

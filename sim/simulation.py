@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +63,7 @@ class StepRecords:
             np.concatenate([self.overlap_sweeps, other.overlap_sweeps]),
         )
 
-    def arrays(self) -> dict[str, np.ndarray]:
+    def arrays(self) -> dict[str, Any]:
         return {
             "record_strain": self.strain,
             "record_stress": self.stress,
@@ -153,10 +154,12 @@ class Simulation:
             raise ValueError(f"n_steps must be >= 0, got {n_steps}")
         c = self.config
         s = self.state
-        strain, has_previous, done, status, strains, stress, gaps, iterations, sweeps = advance(
+        strain, has_previous, stored, done, status, strains, stress, gaps, iterations, sweeps = advance(
             s.positions,
             s.previous_velocity,
             s.warm_start,
+            s.previous_warm_start,
+            s.stored_solutions,
             s.has_previous,
             s.strain,
             n_steps,
@@ -175,6 +178,7 @@ class Simulation:
         self.records = self.records.append(chunk)
         s.strain = strain
         s.has_previous = has_previous
+        s.stored_solutions = stored
         s.step += done
         if status != STATUS_OK:
             raise SimulationError(f"step {s.step} (strain {s.strain:.4f}): {STATUS_MESSAGES[status]}")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,8 +16,9 @@ class SimulationState:
     Attributes:
         positions: (N, 3) float64 wrapped positions in [0, L)^3 (units a).
         previous_velocity: (N, 3) float64 total velocity of the last step, for AB2 (units a gammadot).
-        warm_start: (N, 6) float64 last disturbance velocity ``[U - u_inf, Omega - omega_inf]``, the PCG
-            initial guess.
+        warm_start: (N, 6) float64 last disturbance velocity ``[U - u_inf, Omega - omega_inf]``.
+        previous_warm_start: (N, 6) float64 the one before; the PCG initial guess extrapolates the two.
+        stored_solutions: how many of ``warm_start``, ``previous_warm_start`` are valid (0, 1 or 2).
         has_previous: False before the first step (which is then explicit Euler).
         strain: accumulated strain (sets the Lees–Edwards offset).
         step: number of steps taken.
@@ -25,6 +27,8 @@ class SimulationState:
     positions: np.ndarray
     previous_velocity: np.ndarray
     warm_start: np.ndarray
+    previous_warm_start: np.ndarray
+    stored_solutions: int
     has_previous: bool
     strain: float
     step: int
@@ -37,6 +41,8 @@ class SimulationState:
             positions=np.ascontiguousarray(positions, dtype=np.float64).copy(),
             previous_velocity=np.zeros((n, 3)),
             warm_start=np.zeros((n, 6)),
+            previous_warm_start=np.zeros((n, 6)),
+            stored_solutions=0,
             has_previous=False,
             strain=0.0,
             step=0,
@@ -48,17 +54,21 @@ class SimulationState:
             self.positions.copy(),
             self.previous_velocity.copy(),
             self.warm_start.copy(),
+            self.previous_warm_start.copy(),
+            self.stored_solutions,
             self.has_previous,
             self.strain,
             self.step,
         )
 
-    def arrays(self) -> dict[str, np.ndarray]:
+    def arrays(self) -> dict[str, Any]:
         """Arrays for ``np.savez`` (scalars as 0-d arrays, exact)."""
         return {
             "positions": self.positions,
             "previous_velocity": self.previous_velocity,
             "warm_start": self.warm_start,
+            "previous_warm_start": self.previous_warm_start,
+            "stored_solutions": np.array(self.stored_solutions, dtype=np.int64),
             "has_previous": np.array(self.has_previous),
             "strain": np.array(self.strain, dtype=np.float64),
             "step": np.array(self.step, dtype=np.int64),
@@ -71,6 +81,8 @@ class SimulationState:
             positions=np.array(data["positions"], dtype=np.float64),
             previous_velocity=np.array(data["previous_velocity"], dtype=np.float64),
             warm_start=np.array(data["warm_start"], dtype=np.float64),
+            previous_warm_start=np.array(data["previous_warm_start"], dtype=np.float64),
+            stored_solutions=int(data["stored_solutions"]),
             has_previous=bool(data["has_previous"]),
             strain=float(data["strain"]),
             step=int(data["step"]),

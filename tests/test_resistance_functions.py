@@ -27,6 +27,7 @@ from sim.hydrodynamics.resistance_functions import (
     SCALAR_NAMES,
     far_field_scalars,
     lubrication_scalars,
+    lubrication_taper,
     near_field_scalars,
     scalars_as_dict,
 )
@@ -256,16 +257,22 @@ def test_lubrication_singular_parts_match_near_forms() -> None:
     assert abs(near_field_scalars(1e-6)[rf.I_XA11] - near_field_scalars(1e-7)[rf.I_XA11]) > 1e6
 
 
-def test_lubrication_regularisation_is_a_gap_shift() -> None:
-    """f(xi; xi_cut, delta) = f(xi + delta; xi_cut + delta, 0) by construction; finite at contact."""
+def test_lubrication_regularisation_and_taper() -> None:
+    """Below xi_cut/2: f(xi; delta) equals the unshifted singular terms at xi + delta (1e-13); the taper
+    is 1 there, 0 at the cut-off, 1/2 half way through the switch, and C1 (zero slope at both ends)."""
     cut, delta = DEFAULT_LUBRICATION_CUTOFF, DEFAULT_LUBRICATION_REGULARISATION
-    for xi in (0.0, 1e-4, 0.03, 0.3):
-        np.testing.assert_allclose(
-            lubrication_scalars(xi, cut, delta), lubrication_scalars(xi + delta, cut + delta, 0.0), rtol=1e-13
-        )
+    for xi in (0.0, 1e-4, 0.03, 0.2):
+        regularised = lubrication_scalars(xi, cut, delta)
+        unregularised = lubrication_scalars(xi + delta, cut, 0.0)
+        np.testing.assert_allclose(regularised, unregularised, rtol=1e-13)
     at_contact = scalars_as_dict(lubrication_scalars(0.0, cut, delta))
-    expected = 0.25 * (1.0 / delta - 1.0 / (cut + delta)) + 9.0 / 40.0 * np.log((cut + delta) / delta)
+    expected = 0.25 / delta + 9.0 / 40.0 * np.log(1.0 / delta)
     assert at_contact["XA11"] == pytest.approx(expected, rel=1e-14)
+    assert lubrication_taper(0.5 * cut, cut) == 1.0 and lubrication_taper(cut, cut) == 0.0
+    assert lubrication_taper(0.75 * cut, cut) == pytest.approx(0.5, abs=1e-15)
+    h = 1e-7
+    assert abs(lubrication_taper(0.5 * cut + h, cut) - 1.0) < 1e-10
+    assert abs(lubrication_taper(cut - h, cut)) < 1e-10
 
 
 # --------------------------------------------------------------------------------------------------

@@ -69,17 +69,18 @@ def test_isolated_spheres_follow_the_flow_and_give_einstein_stresslet() -> None:
 
 
 def test_dilute_limit() -> None:
-    """eta_r -> 1 + 2.5 phi: at phi = 0.02 the pair correction is O(phi^2).
+    """eta_r -> 1 + 2.5 phi (Einstein): at phi = 0.01 the remainder is O(phi^2).
 
-    The bound |eta_r - 1 - 2.5 phi| <= 5.2 phi^2 uses Batchelor & Green's (1972) full two-body O(phi^2)
-    coefficient (5.2 for pure straining), an upper bound for the lubrication-only pair part.
+    Bound: |eta_r - 1 - 2.5 phi| <= 10 phi^2 = 0.001, i.e. 4% of the Einstein term 2.5 phi = 0.025, so an
+    error of 4% in the Einstein coefficient fails. The pair coefficient of this model for a random (g = 1)
+    configuration is about 6 (5.7 measured at phi = 0.02), of the order of Batchelor & Green's (1972) 5-7.6.
     """
-    phi = 0.02
-    config = SimulationConfig(n_particles=200, volume_fraction=phi, strain=0.0)
-    pos = random_packing(200, phi, seed=3, min_gap=0.01)
+    phi = 0.01
+    config = SimulationConfig(n_particles=400, volume_fraction=phi, strain=0.0)
+    pos = random_packing(400, phi, seed=3, min_gap=0.01)
     _, _, stress, _, _ = _evaluate(pos, config)
     eta, _, _ = rheology(stress.sum(axis=0))
-    assert abs(eta - (1 + 2.5 * phi)) <= 5.2 * phi**2
+    assert abs(eta - (1 + 2.5 * phi)) <= 10 * phi**2
 
 
 @pytest.fixture(scope="module")

@@ -9,11 +9,14 @@ repeated, with the pair list rebuilt before each sweep (a push can create a new 
 sphere that was not listed), until a sweep finds no gap below ``min_gap``.
 
 References:
-    Melrose, J. R. & Ball, R. C. (1995) "The pathological behaviour of sheared hard spheres with
-    hydrodynamic interactions", Europhys. Lett. 32, 535; Ball, R. C. & Melrose, J. R. (1997)
-    "A simulation technique for many spheres in quasi-static motion under frame-invariant pair
-    drag and Brownian forces", Physica A 247, 444; the algorithm as used in Mirfendereski & Park
-    (2024), J. Fluid Mech., §2.3 (cited there as Melrose & Ball 1993); ``physics.md`` §5.
+    Melrose, J. R. & Ball, R. C. (1993): the potential-free overlap-removal algorithm, as cited
+    (key ``melrose1993``) and used by Mirfendereski, S. & Park, J. S. (2024), J. Fluid Mech., §2.3;
+    the full bibliographic entry is not in our copy of that paper (unverified). Related work of
+    the same authors on sheared hard spheres with lubrication: Melrose, J. R. & Ball, R. C. (1995)
+    "The pathological behaviour of sheared hard spheres with hydrodynamic interactions",
+    Europhys. Lett. 32, 535; Ball, R. C. & Melrose, J. R. (1997) "A simulation technique for many
+    spheres in quasi-static motion under frame-invariant pair drag and Brownian forces",
+    Physica A 247, 444. ``physics.md`` §5.
 """
 
 from __future__ import annotations
@@ -64,8 +67,8 @@ def remove_overlaps(
         velocity by ``-crossings*L*gammadot`` in ``x``).
 
     References:
-        Melrose & Ball (1995), Europhys. Lett. 32, 535; Mirfendereski & Park (2024), J. Fluid Mech.,
-        §2.3; ``physics.md`` §5.
+        Melrose & Ball (1993), as used by Mirfendereski & Park (2024), J. Fluid Mech., §2.3;
+        ``physics.md`` §5.
     """
     n = positions.shape[0]
     crossings = np.zeros(n, dtype=np.int64)
@@ -133,7 +136,7 @@ def remove_overlaps_checked(
         RuntimeError: If overlaps remain after ``max_sweeps`` sweeps.
 
     References:
-        Melrose & Ball (1995), Europhys. Lett. 32, 535; ``physics.md`` §5.
+        Melrose & Ball (1993), as used by Mirfendereski & Park (2024), J. Fluid Mech., §2.3.
     """
     min_gap = float(min_gap)
     if not (math.isfinite(min_gap) and min_gap >= 0.0):

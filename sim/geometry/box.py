@@ -215,7 +215,10 @@ class LeesEdwardsBox:
 
     @property
     def lattice_vectors(self) -> np.ndarray:
-        """Sheared lattice basis, shape ``(3, 3)``: rows ``a1 = (L,0,0)``, ``a2 = (delta,L,0)``, ``a3 = (0,0,L)``."""
+        """Sheared lattice basis, shape ``(3, 3)`` (units of ``a``).
+
+        Rows ``a1 = (L, 0, 0)``, ``a2 = (delta, L, 0)``, ``a3 = (0, 0, L)``.
+        """
         length = self.length
         return np.array(
             [[length, 0.0, 0.0], [self.offset, length, 0.0], [0.0, 0.0, length]], dtype=np.float64

@@ -6,8 +6,8 @@ slightly inflated diameter, in the family of overlap-relaxation packing algorith
 placement followed by relaxation of the overlaps; Clarke & Wiley 1987, as cited by Mirfendereski &
 Park 2024 §2.3). The minimiser is FIRE (Bitzek et al. 2006) on the harmonic energy of O'Hern et al.
 (2003); it finds an overlap-free state at every volume fraction below the jamming point
-``phi_J ~ 0.64``, and ``phi <= 0.55`` with ``min_gap = 0.01`` corresponds to an effective volume
-fraction of at most ``~0.57``. A final Melrose–Ball sweep
+``phi_J ~ 0.64``, and ``phi <= 0.6`` with ``min_gap = 0.01`` corresponds to an effective volume
+fraction of at most ``~0.62``. A final Melrose–Ball sweep
 (:func:`~sim.contacts.overlap.remove_overlaps`) guarantees ``r - 2 >= min_gap`` for every pair.
 
 The packings are random, isotropic and deterministic for a given seed, but they are quenched, not
@@ -37,7 +37,7 @@ from sim.geometry.neighbors import build_pair_list
 __all__ = ["MAX_VOLUME_FRACTION", "box_length_for", "random_packing"]
 
 #: Largest volume fraction :func:`random_packing` accepts.
-MAX_VOLUME_FRACTION = 0.55
+MAX_VOLUME_FRACTION = 0.6
 
 # Diameter inflation (units of a) of the soft spheres above 2 + min_gap; FIRE stops when every
 # overlap at the inflated diameter is below half of it, so all gaps then exceed min_gap.
@@ -209,9 +209,7 @@ def _relax_soft_spheres(
     return -1
 
 
-def random_packing(
-    n_particles: int, volume_fraction: float, seed: int, min_gap: float = 1e-2
-) -> np.ndarray:
+def random_packing(n_particles: int, volume_fraction: float, seed: int, min_gap: float = 1e-2) -> np.ndarray:
     """Random packing of ``n_particles`` unit spheres at ``volume_fraction`` with every gap ``>= min_gap``.
 
     Centres are drawn uniformly in ``[0, L)^3`` with ``np.random.default_rng(seed)``, then the
@@ -222,7 +220,7 @@ def random_packing(
 
     Args:
         n_particles: Number of spheres ``N``, an integer ``>= 2``.
-        volume_fraction: Volume fraction ``phi = N (4/3) pi / L^3``, in ``(0, 0.55]``.
+        volume_fraction: Volume fraction ``phi = N (4/3) pi / L^3``, in ``(0, 0.6]``.
         seed: Seed for ``np.random.default_rng``.
         min_gap: Smallest surface gap ``r - 2`` (units of ``a``), finite, in ``[0, 0.1]``.
 
@@ -234,7 +232,7 @@ def random_packing(
         ValueError: If ``n_particles``, ``volume_fraction`` or ``min_gap`` is out of range, or if
             the box is too small (``L/2 < 2 + min_gap + 1e-6``, i.e. too few particles at this
             volume fraction for the minimum image to give every pair's true gap).
-        RuntimeError: If the relaxation fails to converge (not expected for ``phi <= 0.55``).
+        RuntimeError: If the relaxation fails to converge (not expected for ``phi <= 0.6``).
 
     References:
         Clarke & Wiley (1987), Phys. Rev. B 35, 7350; O'Hern et al. (2003), Phys. Rev. E 68,
@@ -246,9 +244,7 @@ def random_packing(
     n_particles = int(n_particles)
     volume_fraction = float(volume_fraction)
     if not (0.0 < volume_fraction <= MAX_VOLUME_FRACTION):
-        raise ValueError(
-            f"volume_fraction must be in (0, {MAX_VOLUME_FRACTION}], got {volume_fraction!r}"
-        )
+        raise ValueError(f"volume_fraction must be in (0, {MAX_VOLUME_FRACTION}], got {volume_fraction!r}")
     min_gap = float(min_gap)
     if not (math.isfinite(min_gap) and 0.0 <= min_gap <= 0.1):
         raise ValueError(f"min_gap must be in [0, 0.1], got {min_gap!r}")

@@ -2,23 +2,25 @@
 
 Both builders return every pair ``(i, j)`` with ``i < j`` whose minimum-image separation is
 shorter than the cut-off, once, sorted lexicographically by ``(i, j)``, with
-``separations[k] = minimum_image(x_j - x_i)``. The two outputs are bit-identical (the separation
-is computed by the same :func:`~sim.geometry.box.minimum_image` call on the same raw difference).
+``separations[k] = minimum_image(x_j - x_i)`` (:func:`~sim.geometry.box.minimum_image`). The two
+outputs are bit-identical.
 
-Cell list with a sheared boundary: the box is cut into ``n_cells**3`` cubic cells of side
-``w = L/n_cells >= cutoff``. A neighbour of particle ``i`` lies in one of the three ``y`` rows and
-three ``z`` layers around ``i``'s cell. When the ``y`` row crosses the ``y`` boundary, its particles
-are seen through the image shifted by ``+/- delta`` in ``x``, so the ``x`` cells searched are those
-covering ``[x_i - s - cutoff, x_i - s + cutoff]`` (``s = +/- delta`` the shift of that row; at most
-three cells because ``2*cutoff <= 2*w``), instead of ``cx - 1 .. cx + 1``. The same particle-
-specific ``x`` window is used for unshifted rows (``s = 0``), and is widened by a relative
-``1e-9`` so that rounding in the cell assignment cannot drop a pair.
+Cell list with a sheared boundary. The box is cut into ``n**3`` cubic cells of side
+``w = L/n >= cutoff`` (``n >= 3``), numbered ``(cy*n + cz)*n + cx`` so that the cells of one
+``(y, z)`` row are contiguous in memory. Each cell is paired with itself and with the half shell
+``(dx, dz, dy) = (+1, 0, 0)``, ``(-1..+1, +1, 0)`` and ``(., -1..+1, +1)``. Inside the box the last
+group is the nine cells ``dx = -1..+1``; when the row ``dy = +1`` lies across the ``y = L`` boundary it
+is seen through the image at ``y + L``, shifted by ``+delta`` in ``x``, so the ``x`` cells taken are
+those overlapping ``[x_lo - delta - cutoff, x_hi - delta + cutoff]`` for the home cell
+``[x_lo, x_hi)`` (up to four cells; the whole row, with the ``x`` image chosen per pair, when that
+window covers every cell). For ``n >= 3`` every unordered pair of cells, hence every pair of
+particles, is visited exactly once. Cells are ``1e-9`` (relative) wider than the cut-off and all
+windows and screens are ``1e-9`` wider than needed, so rounding in the cell assignment cannot
+drop a pair.
 
 References:
-    Allen, M. P. & Tildesley, D. J. (2017) "Computer Simulation of Liquids", 2nd ed., OUP, §5.3
-    (cell lists) and §11.3 (Lees–Edwards cell lists). Bhupathiraju, R., Cummings, P. T. & Cochran,
-    H. D. (1996) "An efficient parallel algorithm for non-equilibrium molecular dynamics
-    simulations of very large systems in planar Couette flow", Mol. Phys. 88, 1665.
+    Allen, M. P. & Tildesley, D. J. (2017) "Computer Simulation of Liquids", 2nd ed., OUP: ch. 5
+    (cell and neighbour lists) and ch. 11 (Lees–Edwards boundaries and their cell lists).
 """
 
 from __future__ import annotations
@@ -32,8 +34,8 @@ from sim.geometry.box import LeesEdwardsBox, minimum_image
 
 __all__ = ["build_pair_list", "build_pair_list_brute_force", "pair_list"]
 
-# Relative margin by which cells are made larger than the cut-off and search windows wider than
-# needed, so that floating-point rounding in the cell assignment can never lose a pair.
+# Relative margin by which cells are made larger than the cut-off and search windows and screens
+# wider than needed, so that floating-point rounding in the cell assignment can never lose a pair.
 _CELL_MARGIN = 1e-9
 
 
@@ -55,13 +57,14 @@ def build_pair_list_brute_force(
         with ``|separation| < cutoff``.
 
     References:
-        Allen & Tildesley (2017), Computer Simulation of Liquids, §5.3.
+        Allen & Tildesley (2017), Computer Simulation of Liquids, ch. 5.
     """
     n = positions.shape[0]
     cutoff_sq = cutoff * cutoff
-    capacity = max(16, 8 * n)
-    pairs = np.empty((capacity, 2), dtype=np.int64)
-    seps = np.empty((capacity, 3), dtype=np.float64)
+    capacity = max(64, 8 * n)
+    buf_i = np.empty(capacity, dtype=np.int64)
+    buf_j = np.empty(capacity, dtype=np.int64)
+    buf_sep = np.empty((capacity, 3), dtype=np.float64)
     m = 0
     for i in range(n):
         xi = positions[i, 0]
@@ -74,98 +77,17 @@ def build_pair_list_brute_force(
             if dx * dx + dy * dy + dz * dz < cutoff_sq:
                 if m == capacity:
                     capacity *= 2
-                    pairs, seps = _grow(pairs, seps, capacity)
-                pairs[m, 0] = i
-                pairs[m, 1] = j
-                seps[m, 0] = dx
-                seps[m, 1] = dy
-                seps[m, 2] = dz
-                m += 1
-    return pairs[:m].copy(), seps[:m].copy()
-
-
-@njit(cache=True)
-def _grow(pairs: np.ndarray, seps: np.ndarray, capacity: int) -> tuple[np.ndarray, np.ndarray]:
-    """Copy the pair buffers into new ones of the given (larger) capacity."""
-    new_pairs = np.empty((capacity, 2), dtype=np.int64)
-    new_seps = np.empty((capacity, 3), dtype=np.float64)
-    m = pairs.shape[0]
-    new_pairs[:m] = pairs
-    new_seps[:m] = seps
-    return new_pairs, new_seps
-
-
-@njit(cache=True)
-def _cell_index(value: float, inv_width: float, n_cells: int) -> int:
-    """Cell index of a wrapped coordinate, clamped into ``[0, n_cells)``."""
-    c = int(math.floor(value * inv_width))
-    if c < 0:
-        c = 0
-    elif c >= n_cells:
-        c = n_cells - 1
-    return c
-
-
-@njit(cache=True)
-def _scan_cell_pair(
-    sorted_pos: np.ndarray,
-    cell_particles: np.ndarray,
-    a0: int,
-    a1: int,
-    b0: int,
-    b1: int,
-    x_image: float,
-    y_image: float,
-    z_image: float,
-    round_x: bool,
-    positions: np.ndarray,
-    box_length: float,
-    offset: float,
-    screen_sq: float,
-    cutoff_sq: float,
-    buf_i: np.ndarray,
-    buf_j: np.ndarray,
-    buf_sep: np.ndarray,
-    m: int,
-) -> int:
-    """Test every particle of run ``a0:a1`` against every particle of run ``b0:b1`` (two cells).
-
-    The candidate separation ``x_b + image - x_a`` uses the image implied by the cells (with the
-    ``x`` image rounded to the nearest one when ``round_x``); survivors of the screen get the
-    exact minimum image of ``x_j - x_i`` (``i < j``) and are appended to the buffers if closer
-    than the cut-off. Returns the new number of buffered pairs (buffers must have room).
-    """
-    for a in range(a0, a1):
-        xa = sorted_pos[a, 0] - x_image
-        ya = sorted_pos[a, 1] - y_image
-        za = sorted_pos[a, 2] - z_image
-        for b in range(b0, b1):
-            ex = sorted_pos[b, 0] - xa
-            if round_x:
-                ex -= box_length * np.round(ex / box_length)
-            ey = sorted_pos[b, 1] - ya
-            ez = sorted_pos[b, 2] - za
-            if ex * ex + ey * ey + ez * ez >= screen_sq:
-                continue
-            i = cell_particles[a]
-            j = cell_particles[b]
-            if i > j:
-                i, j = j, i
-            dx, dy, dz = minimum_image(
-                positions[j, 0] - positions[i, 0],
-                positions[j, 1] - positions[i, 1],
-                positions[j, 2] - positions[i, 2],
-                box_length,
-                offset,
-            )
-            if dx * dx + dy * dy + dz * dz < cutoff_sq:
+                    buf_i, buf_j, buf_sep = _grow_buffers(buf_i, buf_j, buf_sep, m, capacity)
                 buf_i[m] = i
                 buf_j[m] = j
                 buf_sep[m, 0] = dx
                 buf_sep[m, 1] = dy
                 buf_sep[m, 2] = dz
                 m += 1
-    return m
+    pairs = np.empty((m, 2), dtype=np.int64)
+    pairs[:, 0] = buf_i[:m]
+    pairs[:, 1] = buf_j[:m]
+    return pairs, buf_sep[:m].copy()
 
 
 @njit(cache=True)
@@ -183,24 +105,49 @@ def _grow_buffers(
 
 
 @njit(cache=True)
+def _cell_index(value: float, inv_width: float, n_cells: int) -> int:
+    """Cell index of a wrapped coordinate, clamped into ``[0, n_cells)``."""
+    c = int(math.floor(value * inv_width))
+    if c < 0:
+        c = 0
+    elif c >= n_cells:
+        c = n_cells - 1
+    return c
+
+
+_RUN_PLAIN = 0
+_RUN_SELF = 1
+_RUN_NEAREST_X = 2
+
+
+@njit(cache=True)
+def _set_run(runs: np.ndarray, k: int, b0: int, b1: int, kx: int, ky: int, kz: int, mode: int) -> None:
+    """Store one run of neighbour particles (see :func:`build_pair_list`)."""
+    runs[k, 0] = b0
+    runs[k, 1] = b1
+    runs[k, 2] = kx
+    runs[k, 3] = ky
+    runs[k, 4] = kz
+    runs[k, 5] = mode
+
+
+@njit(cache=True)
 def build_pair_list(
     positions: np.ndarray, box_length: float, offset: float, cutoff: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """All pairs closer than ``cutoff`` by a Lees–Edwards cell list (O(N)).
 
-    Half-shell sweep over pairs of cells: each cell is paired with itself, with ``(dx, dz, dy) =
-    (+1, 0, 0)``, with the three ``x`` neighbours in the layer ``dz = +1`` (``dy = 0``) and with
-    the row ``dy = +1``: nine cells when that row is inside the box; when it lies across the
-    ``y = L`` boundary it is seen through the image shifted by ``+delta`` in ``x``, and the ``x``
-    cells searched are those overlapping ``[x_lo - delta - cutoff, x_hi - delta + cutoff]`` for the
-    home cell ``[x_lo, x_hi)`` (up to four cells; the whole row, with the ``x`` image rounded per
-    pair, when that covers every cell). With three or more cells per side every unordered cell
-    pair, and hence every particle pair, is visited exactly once. Found pairs are then ordered by
-    ``(i, j)`` with a counting sort on ``i`` and an insertion sort on ``j``.
-
-    Falls back to :func:`build_pair_list_brute_force` when fewer than three cells fit per side.
-    The output is identical to the brute-force twin (same pairs, same order, bit-identical
-    separations).
+    Half-shell sweep over pairs of cells (see the module docstring). For each non-empty home cell
+    the neighbour particles are gathered as at most ten runs that are contiguous in cell order,
+    each seen through one lattice image; candidates are screened with that image, and survivors
+    get the minimum image of ``x_j - x_i`` (``i < j``) by the floating-point operations of
+    :func:`~sim.geometry.box.minimum_image` with its integers known from the cells (bit-identical
+    to it below ``0.49 L``, where rounding cannot pick another image; recomputed by it above).
+    Pairs are then ordered by ``(i, j)`` with a two-pass radix (counting) sort. Measured cost for
+    ``N = 2000``, ``phi = 0.45``, cutoff 2.5 (about 7000 pairs): 0.43–0.65 ms per build on a shared
+    2-core AMD EPYC VM (about 1/60 of the brute-force twin). Falls back to
+    :func:`build_pair_list_brute_force` when fewer than three cells fit per side. The output is
+    identical to the brute-force twin (same pairs, same order, bit-identical separations).
 
     Args:
         positions: Particle centres, shape ``(N, 3)``, float64 (units of ``a``), wrapped into
@@ -217,8 +164,7 @@ def build_pair_list(
         with ``|separation| < cutoff``.
 
     References:
-        Allen & Tildesley (2017), Computer Simulation of Liquids, §5.3 and §11.3;
-        Bhupathiraju, Cummings & Cochran (1996), Mol. Phys. 88, 1665.
+        Allen & Tildesley (2017), Computer Simulation of Liquids, ch. 5 and ch. 11.
     """
     n = positions.shape[0]
     n_cells = int(box_length / (cutoff * (1.0 + _CELL_MARGIN)))
@@ -228,8 +174,7 @@ def build_pair_list(
     inv_width = 1.0 / width
     n_cells_total = n_cells * n_cells * n_cells
 
-    # Counting sort of particles into cells, cell index (cy*n + cz)*n + cx, so that the cells
-    # of one (y, z) row are contiguous; coordinates are copied in cell order (cache locality).
+    # Counting sort of the particles into cells (stable); coordinates copied in cell order.
     cell_of = np.empty(n, dtype=np.int64)
     cell_start = np.zeros(n_cells_total + 1, dtype=np.int64)
     for i in range(n):
@@ -239,39 +184,42 @@ def build_pair_list(
         c = (cy * n_cells + cz) * n_cells + cx
         cell_of[i] = c
         cell_start[c + 1] += 1
+    max_occupancy = 0
     for c in range(n_cells_total):
+        max_occupancy = max(max_occupancy, cell_start[c + 1])
         cell_start[c + 1] += cell_start[c]
     fill = cell_start[:-1].copy()
     cell_particles = np.empty(n, dtype=np.int64)
-    sorted_pos = np.empty((n, 3), dtype=np.float64)
+    sp = np.empty((n, 3), dtype=np.float64)  # coordinates in cell order
     for i in range(n):
         c = cell_of[i]
         k = fill[c]
         cell_particles[k] = i
-        sorted_pos[k, 0] = positions[i, 0]
-        sorted_pos[k, 1] = positions[i, 1]
-        sorted_pos[k, 2] = positions[i, 2]
+        sp[k, 0] = positions[i, 0]
+        sp[k, 1] = positions[i, 1]
+        sp[k, 2] = positions[i, 2]
         fill[c] += 1
-    max_occupancy = 0
-    for c in range(n_cells_total):
-        occupancy = cell_start[c + 1] - cell_start[c]
-        if occupancy > max_occupancy:
-            max_occupancy = occupancy
 
     cutoff_sq = cutoff * cutoff
     reach = cutoff * (1.0 + _CELL_MARGIN)
-    # Candidates are screened with the image implied by the cells, with a radius a relative 1e-9
-    # larger than the cut-off; survivors get the exact minimum image, as in the brute-force twin.
+    # Candidates are screened with the cell-implied image at a radius 1e-9 (relative) above the
+    # cut-off; survivors get the exact minimum image.
     screen_sq = reach * reach
+    # Above 0.49 L the known-image shortcut below defers to minimum_image itself.
+    guard_sq = (0.49 * box_length) ** 2
     capacity = max(64, 8 * n)
     buf_i = np.empty(capacity, dtype=np.int64)
     buf_j = np.empty(capacity, dtype=np.int64)
     buf_sep = np.empty((capacity, 3), dtype=np.float64)
-    # Pairs one home cell can add at most: itself, 13 neighbour cells, 1 extra in a shifted row.
-    per_cell_bound = 15 * max_occupancy * max_occupancy
+    # Pairs one home cell can add at most: itself, 1 + 3 cells at dy = 0, <= 12 cells at dy = +1.
+    per_cell_bound = 17 * max_occupancy * max_occupancy
+    # Runs of neighbour particles (contiguous in cell order) of the current home cell, one per
+    # row of the half shell and x period: b0, b1, kx, ky, kz, mode. The run is seen through the
+    # lattice image kx*a1 + ky*a2 + kz*a3; mode _RUN_SELF: pairs inside the home run (b > a)
+    # then on into the next cell; _RUN_NEAREST_X: the x period is chosen per pair (whole row).
+    runs = np.empty((16, 6), dtype=np.int64)
     m = 0
     for cy in range(n_cells):
-        crossing = cy == n_cells - 1
         for cz in range(n_cells):
             for cx in range(n_cells):
                 c = (cy * n_cells + cz) * n_cells + cx
@@ -283,126 +231,181 @@ def build_pair_list(
                     while m + per_cell_bound > capacity:
                         capacity *= 2
                     buf_i, buf_j, buf_sep = _grow_buffers(buf_i, buf_j, buf_sep, m, capacity)
-                # Same cell: pairs a < b of the run (the direct difference is the only image
-                # shorter than the cut-off).
-                for a in range(a0, a1):
-                    m = _scan_cell_pair(
-                        sorted_pos, cell_particles, a, a + 1, a + 1, a1, 0.0, 0.0, 0.0, False,
-                        positions, box_length, offset, screen_sq, cutoff_sq, buf_i, buf_j, buf_sep, m,
-                    )
-                # (dx, dz, dy) = (+1, 0, 0).
-                cxn = cx + 1
-                x_image = 0.0
-                if cxn == n_cells:
-                    cxn = 0
-                    x_image = box_length
-                cn = (cy * n_cells + cz) * n_cells + cxn
-                m = _scan_cell_pair(
-                    sorted_pos, cell_particles, a0, a1, cell_start[cn], cell_start[cn + 1],
-                    x_image, 0.0, 0.0, False,
-                    positions, box_length, offset, screen_sq, cutoff_sq, buf_i, buf_j, buf_sep, m,
-                )
-                # Layer dz = +1 (dy = 0), x neighbours -1, 0, +1.
-                czn = cz + 1
-                z_image = 0.0
-                if czn == n_cells:
-                    czn = 0
-                    z_image = box_length
-                row = (cy * n_cells + czn) * n_cells
-                for dcx in range(-1, 2):
-                    cxu = cx + dcx
-                    cxn = cxu % n_cells
-                    x_image = (cxu - cxn) // n_cells * box_length
-                    cn = row + cxn
-                    m = _scan_cell_pair(
-                        sorted_pos, cell_particles, a0, a1, cell_start[cn], cell_start[cn + 1],
-                        x_image, 0.0, z_image, False,
-                        positions, box_length, offset, screen_sq, cutoff_sq, buf_i, buf_j, buf_sep, m,
-                    )
-                # Row dy = +1, layers dz = -1, 0, +1.
-                if crossing:
-                    # Row 0 seen through the image at y + L, shifted by +delta in x: cells holding
-                    # x_j with x_j + delta within reach of the home cell (mod L).
-                    y_image = box_length
-                    shift = offset
-                    lo = int(math.floor((cx * width - offset - reach) * inv_width))
-                    hi = int(math.floor(((cx + 1) * width - offset + reach) * inv_width))
-                    full_row = hi - lo + 1 >= n_cells
-                    cyn = 0
+                # The home cell with itself and with (dx, dz, dy) = (+1, 0, 0): one run unless
+                # that neighbour is across x = L.
+                n_runs = 0
+                if cx + 1 < n_cells:
+                    _set_run(runs, n_runs, a0, cell_start[c + 2], 0, 0, 0, _RUN_SELF)
+                    n_runs += 1
                 else:
-                    y_image = 0.0
-                    shift = 0.0
-                    lo = cx - 1
-                    hi = cx + 1
-                    full_row = False
-                    cyn = cy + 1
-                for dcz in range(-1, 2):
-                    czu = cz + dcz
-                    czn = czu % n_cells
-                    z_image = (czu - czn) // n_cells * box_length
+                    _set_run(runs, n_runs, a0, a1, 0, 0, 0, _RUN_SELF)
+                    cn = c + 1 - n_cells
+                    _set_run(runs, n_runs + 1, cell_start[cn], cell_start[cn + 1], 1, 0, 0, _RUN_PLAIN)
+                    n_runs += 2
+                # Windows of x cells lo..hi (unwrapped) in four rows: the layer dz = +1 at dy = 0,
+                # and the layers dz = -1, 0, +1 at dy = +1. Across y = L the row dy = +1 is row 0
+                # seen through the image at y + L, shifted by +delta in x: the cells holding x_j
+                # with x_j + delta within reach of the home cell (mod L).
+                for w in range(4):
+                    if w == 0:
+                        cyn = cy
+                        czn = cz + 1
+                        ky = 0
+                        lo = cx - 1
+                        hi = cx + 1
+                    else:
+                        czn = cz + w - 2
+                        if cy + 1 < n_cells:
+                            cyn = cy + 1
+                            ky = 0
+                            lo = cx - 1
+                            hi = cx + 1
+                        else:
+                            cyn = 0
+                            ky = 1
+                            lo = int(math.floor((cx * width - offset - reach) * inv_width))
+                            hi = int(math.floor(((cx + 1) * width - offset + reach) * inv_width))
+                    kz = 0
+                    if czn < 0:
+                        czn += n_cells
+                        kz = -1
+                    elif czn >= n_cells:
+                        czn -= n_cells
+                        kz = 1
                     row = (cyn * n_cells + czn) * n_cells
-                    if full_row:
-                        m = _scan_cell_pair(
-                            sorted_pos, cell_particles, a0, a1, cell_start[row],
-                            cell_start[row + n_cells], shift, y_image, z_image, True,
-                            positions, box_length, offset, screen_sq, cutoff_sq, buf_i, buf_j, buf_sep, m,
+                    if hi - lo + 1 >= n_cells:
+                        _set_run(
+                            runs,
+                            n_runs,
+                            cell_start[row],
+                            cell_start[row + n_cells],
+                            0,
+                            ky,
+                            kz,
+                            _RUN_NEAREST_X,
                         )
+                        n_runs += 1
                         continue
-                    # Cells lo..hi (unwrapped) span at most three periods in x; the cells of one
-                    # period are contiguous, so each period is one run of particles.
+                    # The window spans at most three x periods (-n <= lo, hi < 2n); the cells of
+                    # one period are contiguous, hence one run.
                     for period in range(-1, 2):
-                        c0 = max(lo, period * n_cells) - period * n_cells
-                        c1 = min(hi, period * n_cells + n_cells - 1) - period * n_cells
-                        if c0 > c1:
-                            continue
-                        m = _scan_cell_pair(
-                            sorted_pos, cell_particles, a0, a1, cell_start[row + c0],
-                            cell_start[row + c1 + 1], shift + period * box_length, y_image, z_image,
-                            False,
-                            positions, box_length, offset, screen_sq, cutoff_sq, buf_i, buf_j, buf_sep, m,
-                        )
+                        base = period * n_cells
+                        c0 = max(lo, base) - base
+                        c1 = min(hi, base + n_cells - 1) - base
+                        if c0 <= c1:
+                            _set_run(
+                                runs,
+                                n_runs,
+                                cell_start[row + c0],
+                                cell_start[row + c1 + 1],
+                                period,
+                                ky,
+                                kz,
+                                _RUN_PLAIN,
+                            )
+                            n_runs += 1
 
-    # Order by (i, j): counting sort on i, then insertion sort on j inside each i (short runs).
-    start = np.zeros(n + 1, dtype=np.int64)
+                for r in range(n_runs):
+                    b0 = runs[r, 0]
+                    b1 = runs[r, 1]
+                    kx = runs[r, 2]
+                    ky = runs[r, 3]
+                    kz = runs[r, 4]
+                    mode = runs[r, 5]
+                    x_image = kx * box_length + ky * offset
+                    y_image = ky * box_length
+                    z_image = kz * box_length
+                    for a in range(a0, a1):
+                        xa = sp[a, 0] - x_image
+                        ya = sp[a, 1] - y_image
+                        za = sp[a, 2] - z_image
+                        first = a + 1 if mode == _RUN_SELF else b0
+                        for b in range(first, b1):
+                            ex = sp[b, 0] - xa
+                            px = kx
+                            if mode == _RUN_NEAREST_X:
+                                nearest = np.round(ex / box_length)
+                                ex -= box_length * nearest
+                                px = kx - int(nearest)
+                            ey = sp[b, 1] - ya
+                            ez = sp[b, 2] - za
+                            if ex * ex + ey * ey + ez * ez >= screen_sq:
+                                continue
+                            # Exact minimum image of x_j - x_i (i < j): the operations of
+                            # minimum_image with its integers n = -k (+k if swapped) known from
+                            # the cells; identical to minimum_image below 0.49 L (rounding cannot
+                            # pick another image there), recomputed by it above.
+                            pa = cell_particles[a]
+                            pb = cell_particles[b]
+                            if pa < pb:
+                                i = pa
+                                j = pb
+                                rx = sp[b, 0] - sp[a, 0]
+                                ry = sp[b, 1] - sp[a, 1]
+                                rz = sp[b, 2] - sp[a, 2]
+                                sign = -1.0
+                            else:
+                                i = pb
+                                j = pa
+                                rx = sp[a, 0] - sp[b, 0]
+                                ry = sp[a, 1] - sp[b, 1]
+                                rz = sp[a, 2] - sp[b, 2]
+                                sign = 1.0
+                            ny = sign * ky
+                            nx = sign * px
+                            nz = sign * kz
+                            dy = ry - ny * box_length
+                            dx = rx - ny * offset
+                            dx = dx - nx * box_length
+                            dz = rz - nz * box_length
+                            r_sq = dx * dx + dy * dy + dz * dz
+                            if r_sq >= guard_sq:
+                                dx, dy, dz = minimum_image(rx, ry, rz, box_length, offset)
+                                r_sq = dx * dx + dy * dy + dz * dz
+                            if r_sq < cutoff_sq:
+                                buf_i[m] = i
+                                buf_j[m] = j
+                                buf_sep[m, 0] = dx
+                                buf_sep[m, 1] = dy
+                                buf_sep[m, 2] = dz
+                                m += 1
+
+    # Order by (i, j): least-significant-digit radix sort, a stable counting sort on j and then
+    # one on i (no comparisons), followed by one gather.
+    count = np.zeros(n + 1, dtype=np.int64)
     for k in range(m):
-        start[buf_i[k] + 1] += 1
-    for i in range(n):
-        start[i + 1] += start[i]
-    slot = start[:-1].copy()
+        count[buf_j[k] + 1] += 1
+    for t in range(n):
+        count[t + 1] += count[t]
+    by_j = np.empty(m, dtype=np.int64)
+    for k in range(m):
+        jj = buf_j[k]
+        by_j[count[jj]] = k
+        count[jj] += 1
+    count[:] = 0
+    for k in range(m):
+        count[buf_i[k] + 1] += 1
+    for t in range(n):
+        count[t + 1] += count[t]
+    order = np.empty(m, dtype=np.int64)
+    for t in range(m):
+        k = by_j[t]
+        ii = buf_i[k]
+        order[count[ii]] = k
+        count[ii] += 1
     pairs = np.empty((m, 2), dtype=np.int64)
     seps = np.empty((m, 3), dtype=np.float64)
-    for k in range(m):
-        i = buf_i[k]
-        t = slot[i]
-        slot[i] += 1
-        pairs[t, 0] = i
+    for t in range(m):
+        k = order[t]
+        pairs[t, 0] = buf_i[k]
         pairs[t, 1] = buf_j[k]
         seps[t, 0] = buf_sep[k, 0]
         seps[t, 1] = buf_sep[k, 1]
         seps[t, 2] = buf_sep[k, 2]
-    for i in range(n):
-        for a in range(start[i] + 1, start[i + 1]):
-            jj = pairs[a, 1]
-            sx = seps[a, 0]
-            sy = seps[a, 1]
-            sz = seps[a, 2]
-            b = a - 1
-            while b >= start[i] and pairs[b, 1] > jj:
-                pairs[b + 1, 1] = pairs[b, 1]
-                seps[b + 1, 0] = seps[b, 0]
-                seps[b + 1, 1] = seps[b, 1]
-                seps[b + 1, 2] = seps[b, 2]
-                b -= 1
-            pairs[b + 1, 1] = jj
-            seps[b + 1, 0] = sx
-            seps[b + 1, 1] = sy
-            seps[b + 1, 2] = sz
     return pairs, seps
 
 
-def pair_list(
-    positions: np.ndarray, box: LeesEdwardsBox, cutoff: float
-) -> tuple[np.ndarray, np.ndarray]:
+def pair_list(positions: np.ndarray, box: LeesEdwardsBox, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
     """Validated pair list for a :class:`~sim.geometry.box.LeesEdwardsBox` (see :func:`build_pair_list`).
 
     Args:
@@ -419,7 +422,7 @@ def pair_list(
             ``(N, 3)`` array wrapped into ``[0, L)^3``.
 
     References:
-        Allen & Tildesley (2017), Computer Simulation of Liquids, §5.3 and §11.3.
+        Allen & Tildesley (2017), Computer Simulation of Liquids, ch. 5 and ch. 11.
     """
     cutoff = float(cutoff)
     half = 0.5 * box.length

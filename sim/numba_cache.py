@@ -1,0 +1,34 @@
+"""Numba's on-disk cache, keyed on the package source.
+
+``@njit(cache=True)`` invalidates a cached kernel when *its own* file changes, but not when a kernel it
+calls from another module changes: after an edit (or an upgrade) a caller can keep running stale
+machine code. To make that impossible, the cache directory is named after a hash of every ``.py`` file in
+``sim/``; any source change selects a fresh directory. A user-set ``NUMBA_CACHE_DIR`` is respected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+from pathlib import Path
+
+
+def source_digest(package_dir: Path) -> str:
+    """SHA-256 (first 16 hex digits) of the relative paths and contents of all ``.py`` files below."""
+    digest = hashlib.sha256()
+    for path in sorted(package_dir.rglob("*.py")):
+        digest.update(path.relative_to(package_dir).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def configure_numba_cache() -> str | None:
+    """Point numba's cache at ``$XDG_CACHE_HOME/dipsim/numba-<digest>``; return the directory used."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return os.environ["NUMBA_CACHE_DIR"]
+    import numba
+
+    base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dipsim"
+    directory = base / f"numba-{source_digest(Path(__file__).resolve().parent)}"
+    numba.config.CACHE_DIR = str(directory)
+    return str(directory)

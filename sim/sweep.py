@@ -1,0 +1,47 @@
+"""Sweeps: independent runs in separate processes, each writing its own directory and result file.
+
+Each run is a pure function of its ``SimulationConfig`` (seed included), so a sweep is an embarrassingly
+parallel map; here it uses a local process pool (a Dask or cluster backend can call :func:`run_one`).
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from sim.config import SimulationConfig
+
+
+def run_name(config: SimulationConfig) -> str:
+    """Directory name of a run: ``phi0.450_N200_Mninf_seed1``."""
+    return (
+        f"phi{config.volume_fraction:.3f}_N{config.n_particles}_Mn{config.mason_number:g}_seed{config.seed}"
+    )
+
+
+def run_one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
+    """Run one configuration (given as ``to_dict()``) into ``out_dir/run_name``; return its result."""
+    from sim.run import run_simulation
+
+    config = SimulationConfig.from_dict(args[0])
+    out = Path(args[1]) / run_name(config)
+    result_file = out / "result.json"
+    if result_file.exists():  # finished earlier: a sweep can be re-run to fill gaps
+        return json.loads(result_file.read_text())
+    return run_simulation(config, out, progress=False)
+
+
+def run_sweep(
+    configs: Sequence[SimulationConfig], out_dir: str | Path, processes: int = 2
+) -> list[dict[str, Any]]:
+    """Run ``configs`` with ``processes`` worker processes; results in input order."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    jobs = [(c.to_dict(), str(out)) for c in configs]
+    if processes <= 1:
+        return [run_one(j) for j in jobs]
+    with mp.get_context("spawn").Pool(processes) as pool:
+        return pool.map(run_one, jobs, chunksize=1)
