@@ -30,5 +30,5 @@ def configure_numba_cache() -> str | None:
 
     base = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dipsim"
     directory = base / f"numba-{source_digest(Path(__file__).resolve().parent)}"
-    numba.config.CACHE_DIR = str(directory)
+    numba.config.CACHE_DIR = str(directory)  # type: ignore[attr-defined]
     return str(directory)
