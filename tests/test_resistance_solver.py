@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.hydrodynamics.resistance_solver import block_matvec, cholesky_blocks, solve_resistance
+from sim.hydrodynamics.resistance_solver import (
+    block_matvec,
+    cholesky_blocks,
+    dilu_factor,
+    pairs_are_sorted,
+    solve_resistance,
+)
 
 
 def _random_system(seed: int, n: int = 20, m: int = 40):
@@ -79,3 +85,46 @@ def test_zero_rhs_gives_zero() -> None:
     n = diag.shape[0]
     sol, it, res = solve_resistance(diag, off, pairs, np.zeros((n, 6)), np.ones((n, 6)), 1e-8, 100)
     assert it == 0 and res == 0.0 and not sol.any()
+
+
+def _chain_system(seed: int, n: int = 12):
+    """A chain 0-1-2-...: its pair graph is a tree, on which DILU is the exact LDL^T factorisation."""
+    rng = np.random.default_rng(seed)
+    pairs = np.array([[p, p + 1] for p in range(n - 1)], dtype=np.int64)
+    diag = np.array([np.eye(6) * 6 * np.pi for _ in range(n)])
+    off = np.zeros((n - 1, 6, 6))
+    for k in range(n - 1):
+        b = rng.normal(size=(12, 4)) * 40.0  # stiff, like near-contact lubrication
+        blk = b @ b.T
+        diag[k] += blk[:6, :6]
+        diag[k + 1] += blk[6:, 6:]
+        off[k] = blk[:6, 6:]
+    return diag, off, pairs, rng
+
+
+def test_dilu_is_exact_on_a_tree() -> None:
+    """On a chain PCG with DILU converges in one iteration (M = A), to the dense answer (1e-10)."""
+    diag, off, pairs, rng = _chain_system(4)
+    n = diag.shape[0]
+    b = rng.normal(size=(n, 6))
+    sol, iterations, residual = solve_resistance(diag, off, pairs, b, np.zeros((n, 6)), 1e-10, 100)
+    assert iterations == 1 and residual <= 1e-10
+    np.testing.assert_allclose(block_matvec(diag, off, pairs, sol), b, rtol=1e-9, atol=1e-9)
+
+
+def test_dilu_factor_detects_indefinite_blocks_and_unsorted_pairs_fall_back() -> None:
+    diag, off, pairs, rng = _chain_system(5)
+    bad = diag.copy()
+    bad[0] = -np.eye(6)
+    _, ok = dilu_factor(bad, off, pairs)
+    assert not ok
+    assert pairs_are_sorted(pairs)
+    assert not pairs_are_sorted(pairs[::-1].copy())
+    # reversed pair order: DILU is skipped, block-Jacobi still gives the right answer (more iterations)
+    flipped = pairs[::-1].copy()
+    off_flipped = off[::-1].copy()
+    n = diag.shape[0]
+    b = rng.normal(size=(n, 6))
+    sol, iterations, _ = solve_resistance(diag, off_flipped, flipped, b, np.zeros((n, 6)), 1e-10, 1000)
+    assert iterations > 1
+    np.testing.assert_allclose(block_matvec(diag, off_flipped, flipped, sol), b, rtol=1e-8, atol=1e-8)

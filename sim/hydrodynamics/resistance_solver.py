@@ -5,11 +5,16 @@ the (j, i) block is its transpose), as produced by
 :func:`sim.hydrodynamics.lubrication.assemble_resistance`. It is SPD: the Stokes drag diagonal is positive
 definite and each pair's lubrication matrix is positive semi-definite (tested).
 
-The solver is the preconditioned conjugate-gradient method (Hestenes & Stiefel 1952) with a block-Jacobi
-preconditioner (exact 6x6 Cholesky solves of the diagonal blocks) and a warm start from the previous
-step's solution. It stops when ``||b - R V'||_2 <= tol * ||b||_2``; the default ``tol = 1e-8`` makes the
-solver error far below the statistical error of any stress average. Failure to converge is reported,
-never hidden.
+The solver is the preconditioned conjugate-gradient method (Hestenes & Stiefel 1952) with a block
+DILU preconditioner (Saad 2003 §10.3: incomplete LDL^T on the pair pattern that modifies only the diagonal
+blocks, ``M = (D~ + L) D~^-1 (D~ + L^T)`` with ``D~_p = A_pp - sum_{k<p} A_pk D~_k^-1 A_kp``). For a
+tree of lubrication pairs (force chains) M is the exact matrix; with loops it is an approximation. If a
+modified block is not positive definite the block-Jacobi preconditioner (exact 6x6 Cholesky solves of
+the diagonal blocks) is used instead. The initial guess comes from the caller (a warm start). The
+iteration stops when ``||b - R V'||_2 <= tol * ||b||_2``; the default ``tol = 1e-8`` makes the solver
+error far below the statistical error of any stress average. Failure to converge is reported, never
+hidden. At phi = 0.45 DILU needs about 3x fewer iterations than block-Jacobi (52 vs 154 at N = 500) and
+its count does not grow with N (benchmarks/run.py).
 
 References:
     Hestenes, M. R. & Stiefel, E. (1952) J. Res. Natl. Bur. Stand. 49, 409-436.
@@ -117,6 +122,165 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _cholesky_6(a: np.ndarray, low: np.ndarray) -> bool:
+    """Lower Cholesky factor of one 6x6 SPD block into ``low``; False if not positive definite."""
+    for r in range(6):
+        for c in range(r + 1):
+            s = a[r, c]
+            for k in range(c):
+                s -= low[r, k] * low[c, k]
+            if r == c:
+                if not s > 0.0:  # also catches NaN
+                    return False
+                low[r, r] = math.sqrt(s)
+            else:
+                low[r, c] = s / low[c, c]
+    return True
+
+
+@njit(cache=True)
+def _cholesky_solve_6(low: np.ndarray, b: np.ndarray, out: np.ndarray, tmp: np.ndarray) -> None:
+    """``out = (low low^T)^-1 b`` for one 6-vector (``tmp`` is a 6-vector work buffer)."""
+    for a in range(6):
+        s = b[a]
+        for k in range(a):
+            s -= low[a, k] * tmp[k]
+        tmp[a] = s / low[a, a]
+    for a in range(5, -1, -1):
+        s = tmp[a]
+        for k in range(a + 1, 6):
+            s -= low[k, a] * out[k]
+        out[a] = s / low[a, a]
+
+
+@njit(cache=True)
+def _lower_pair_index(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """CSR index of the pairs by their larger particle index: pairs with ``j == p`` are
+    ``order[start[p]:start[p + 1]]``, in increasing pair order."""
+    start = np.zeros(n + 1, dtype=np.int64)
+    for k in range(pairs.shape[0]):
+        start[pairs[k, 1] + 1] += 1
+    for p in range(n):
+        start[p + 1] += start[p]
+    fill = start[:-1].copy()
+    order = np.empty(pairs.shape[0], dtype=np.int64)
+    for k in range(pairs.shape[0]):
+        j = pairs[k, 1]
+        order[fill[j]] = k
+        fill[j] += 1
+    return start, order
+
+
+@njit(cache=True)
+def _upper_pair_index(n: int, pairs: np.ndarray) -> np.ndarray:
+    """Pairs with ``i == p`` are ``start[p]:start[p + 1]`` (pairs are sorted by ``i``)."""
+    start = np.zeros(n + 1, dtype=np.int64)
+    for k in range(pairs.shape[0]):
+        start[pairs[k, 0] + 1] += 1
+    for p in range(n):
+        start[p + 1] += start[p]
+    return start
+
+
+@njit(cache=True)
+def pairs_are_sorted(pairs: np.ndarray) -> bool:
+    """True if every pair has ``i < j`` and ``i`` never decreases (the DILU sweeps need this order)."""
+    for k in range(pairs.shape[0]):
+        if pairs[k, 0] >= pairs[k, 1]:
+            return False
+        if k > 0 and pairs[k, 0] < pairs[k - 1, 0]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def dilu_factor(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Cholesky factors of the DILU-modified diagonal blocks ``D~_p = A_pp - sum_{i<p} A_pi D~_i^-1 A_ip``.
+
+    Pairs must be sorted with ``i < j`` and increasing ``i`` (as the neighbour list returns them).
+
+    Returns:
+        (N, 6, 6) lower Cholesky factors of ``D~`` and False if some ``D~_p`` is not positive definite.
+    """
+    n = diag.shape[0]
+    lstart, lorder = _lower_pair_index(n, pairs)
+    chol = np.zeros((n, 6, 6))
+    work = np.empty((6, 6))
+    col = np.empty(6)
+    sol = np.empty(6)
+    buf = np.empty(6)
+    for p in range(n):
+        work[:, :] = diag[p]
+        for q in range(lstart[p], lstart[p + 1]):
+            k = lorder[q]
+            i = pairs[k, 0]
+            blk = off[k]  # A[i, p]; A[p, i] = blk^T
+            # work -= blk^T D~_i^-1 blk, column by column
+            for c in range(6):
+                for r in range(6):
+                    col[r] = blk[r, c]
+                _cholesky_solve_6(chol[i], col, sol, buf)
+                for r in range(6):
+                    acc = 0.0
+                    for m in range(6):
+                        acc += blk[m, r] * sol[m]
+                    work[r, c] -= acc
+        if not _cholesky_6(work, chol[p]):
+            return chol, False
+    return chol, True
+
+
+@njit(cache=True)
+def _apply_dilu(
+    chol: np.ndarray,
+    off: np.ndarray,
+    pairs: np.ndarray,
+    lstart: np.ndarray,
+    lorder: np.ndarray,
+    ustart: np.ndarray,
+    r: np.ndarray,
+    z: np.ndarray,
+    y: np.ndarray,
+    acc: np.ndarray,
+    tmp: np.ndarray,
+    buf: np.ndarray,
+) -> None:
+    """``z = M^-1 r`` with ``M = (D~ + L) D~^-1 (D~ + L^T)``: a forward and a backward block sweep.
+
+    ``y`` (N, 6) and ``acc``, ``tmp``, ``buf`` (6,) are work buffers (no allocation in the sweeps)."""
+    n = chol.shape[0]
+    for p in range(n):  # (D~ + L) y = r
+        for a in range(6):
+            acc[a] = r[p, a]
+        for q in range(lstart[p], lstart[p + 1]):
+            k = lorder[q]
+            i = pairs[k, 0]
+            blk = off[k]  # A[p, i] = blk^T
+            for a in range(6):
+                s = 0.0
+                for b in range(6):
+                    s += blk[b, a] * y[i, b]
+                acc[a] -= s
+        _cholesky_solve_6(chol[p], acc, tmp, buf)
+        for a in range(6):
+            y[p, a] = tmp[a]
+    for p in range(n - 1, -1, -1):  # (D~ + L^T) z = D~ y  <=>  z_p = y_p - D~_p^-1 sum_{j>p} A_pj z_j
+        for a in range(6):
+            acc[a] = 0.0
+        for k in range(ustart[p], ustart[p + 1]):
+            j = pairs[k, 1]
+            blk = off[k]  # A[p, j]
+            for a in range(6):
+                s = 0.0
+                for b in range(6):
+                    s += blk[a, b] * z[j, b]
+                acc[a] += s
+        _cholesky_solve_6(chol[p], acc, tmp, buf)
+        for a in range(6):
+            z[p, a] = y[p, a] - tmp[a]
+
+
+@njit(cache=True)
 def solve_resistance(
     diag: np.ndarray,
     off: np.ndarray,
@@ -126,7 +290,7 @@ def solve_resistance(
     tolerance: float,
     max_iterations: int,
 ) -> tuple[np.ndarray, int, float]:
-    """Block-Jacobi preconditioned conjugate gradients for ``R_FU . x = rhs``.
+    """Preconditioned conjugate gradients (block DILU, block-Jacobi fallback) for ``R_FU . x = rhs``.
 
     Args:
         diag, off, pairs: block-sparse R_FU (see :func:`block_matvec`).
@@ -145,6 +309,16 @@ def solve_resistance(
     x = initial_guess.copy()
     if not ok or not math.isfinite(bnorm):
         return x, -1, np.inf
+    if pairs_are_sorted(pairs):
+        dilu_chol, use_dilu = dilu_factor(diag, off, pairs)
+    else:
+        dilu_chol, use_dilu = chol, False
+    lstart, lorder = _lower_pair_index(n, pairs)
+    ustart = _upper_pair_index(n, pairs)
+    y_buf = np.empty((n, 6))
+    acc_buf = np.empty(6)
+    tmp_buf = np.empty(6)
+    work_buf = np.empty(6)
     if bnorm == 0.0:
         return np.zeros((n, 6)), 0, 0.0
     r = rhs - block_matvec(diag, off, pairs, x)
@@ -152,7 +326,10 @@ def solve_resistance(
     if rnorm <= tolerance * bnorm:
         return x, 0, rnorm / bnorm
     z = np.empty((n, 6))
-    _apply_block_jacobi(chol, r, z)
+    if use_dilu:
+        _apply_dilu(dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf)
+    else:
+        _apply_block_jacobi(chol, r, z)
     p = z.copy()
     rz = _dot(r, z)
     for it in range(1, max_iterations + 1):
@@ -168,7 +345,12 @@ def solve_resistance(
         rnorm = math.sqrt(_dot(r, r))
         if rnorm <= tolerance * bnorm:
             return x, it, rnorm / bnorm
-        _apply_block_jacobi(chol, r, z)
+        if use_dilu:
+            _apply_dilu(
+                dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf
+            )
+        else:
+            _apply_block_jacobi(chol, r, z)
         rz_new = _dot(r, z)
         beta = rz_new / rz
         rz = rz_new
