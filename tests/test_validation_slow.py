@@ -1,6 +1,6 @@
 """Slow validation of pure-shear rheology against Maron–Pierce (marked ``slow``).
 
-Run with ``python -m pytest -m slow`` (about 15-25 minutes on 2 cores). Settings: N = 200, strain 30,
+Run with ``python -m pytest -m slow`` (about 6 minutes on 2 cores). Settings: N = 200, strain 30,
 dt = 2e-3, averages over strain 10-30 with 10 blocks, seed 1, default lubrication (cut-off 0.5 a,
 regularisation 1e-4 a). The table is written to ``runs/validation/table.md`` and reproduced in the README.
 
@@ -43,7 +43,7 @@ def test_pure_shear_viscosity_against_maron_pierce() -> None:
         dev = r["relative_viscosity"] / mp_value - 1
         rep = r["contributions"]["repulsion"]["relative_viscosity"] / r["relative_viscosity"]
         lines.append(
-            f"| {phi:.2f} | {r['relative_viscosity']:.2f} ± {r['relative_viscosity_stderr']:.2f} "
+            f"| {phi:.2f} | {r['relative_viscosity']:.3f} ± {r['relative_viscosity_stderr']:.3f} "
             f"| {mp_value:.2f} | {100 * dev:+.0f}% | {r['n1']:.2f} ± {r['n1_stderr']:.2f} "
             f"| {r['n2']:.2f} ± {r['n2_stderr']:.2f} "
             f"| {100 * rep:.0f}% |"
