@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.geometry.box import LeesEdwardsBox, minimum_image, wrap_positions
+from sim.geometry.box import LeesEdwardsBox, pair_separation, wrap_positions
 from sim.geometry.neighbors import build_pair_list
 
 __all__ = ["remove_overlaps", "remove_overlaps_checked"]
@@ -81,14 +81,7 @@ def remove_overlaps(
         for k in range(pairs.shape[0]):
             i = pairs[k, 0]
             j = pairs[k, 1]
-            dx, dy, dz = minimum_image(
-                positions[j, 0] - positions[i, 0],
-                positions[j, 1] - positions[i, 1],
-                positions[j, 2] - positions[i, 2],
-                box_length,
-                offset,
-            )
-            r = math.sqrt(dx * dx + dy * dy + dz * dz)
+            dx, dy, dz, r = pair_separation(positions, i, j, box_length, offset)
             if r - 2.0 >= min_gap:
                 continue
             if not moved:

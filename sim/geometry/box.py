@@ -101,6 +101,21 @@ def minimum_image(
 
 
 @njit(cache=True)
+def pair_separation(
+    positions: np.ndarray, i: int, j: int, box_length: float, offset: float
+) -> tuple[float, float, float, float]:
+    """Minimum-image separation ``x_j - x_i`` of particles ``i`` and ``j`` and its length ``r`` (units a)."""
+    dx, dy, dz = minimum_image(
+        positions[j, 0] - positions[i, 0],
+        positions[j, 1] - positions[i, 1],
+        positions[j, 2] - positions[i, 2],
+        box_length,
+        offset,
+    )
+    return dx, dy, dz, math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True)
 def minimum_image_array(dr: np.ndarray, box_length: float, offset: float) -> np.ndarray:
     """Minimum image of many separation vectors (see :func:`minimum_image`).
 

@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from sim.contacts.overlap import remove_overlaps
-from sim.geometry.box import minimum_image, wrap_positions
+from sim.geometry.box import pair_separation, wrap_positions
 from sim.geometry.neighbors import build_pair_list
 
 __all__ = ["MAX_VOLUME_FRACTION", "box_length_for", "random_packing"]
@@ -126,14 +126,7 @@ def _relax_soft_spheres(
         for k in range(pairs.shape[0]):
             i = pairs[k, 0]
             j = pairs[k, 1]
-            dx, dy, dz = minimum_image(
-                positions[j, 0] - positions[i, 0],
-                positions[j, 1] - positions[i, 1],
-                positions[j, 2] - positions[i, 2],
-                box_length,
-                0.0,
-            )
-            r = math.sqrt(dx * dx + dy * dy + dz * dz)
+            dx, dy, dz, r = pair_separation(positions, i, j, box_length, 0.0)
             overlap = diameter - r
             if overlap <= 0.0:
                 continue

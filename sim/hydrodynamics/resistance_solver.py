@@ -66,62 +66,6 @@ def block_matvec(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray, x: np.nda
 
 
 @njit(cache=True)
-def cholesky_blocks(diag: np.ndarray) -> tuple[np.ndarray, bool]:
-    """Lower Cholesky factors of every 6x6 diagonal block.
-
-    Returns:
-        (N, 6, 6) factors and a flag that is False if some block is not positive definite.
-    """
-    n = diag.shape[0]
-    chol = np.zeros((n, 6, 6))
-    ok = True
-    for p in range(n):
-        a = diag[p]
-        low = chol[p]
-        for r in range(6):
-            for c in range(r + 1):
-                s = a[r, c]
-                for k in range(c):
-                    s -= low[r, k] * low[c, k]
-                if r == c:
-                    if not s > 0.0:  # also catches NaN
-                        ok = False
-                        s = 1.0
-                    low[r, r] = math.sqrt(s)
-                else:
-                    low[r, c] = s / low[c, c]
-    return chol, ok
-
-
-@njit(cache=True)
-def _apply_block_jacobi(chol: np.ndarray, r: np.ndarray, z: np.ndarray) -> None:
-    """``z = D^-1 r`` using the Cholesky factors of the diagonal blocks."""
-    n = chol.shape[0]
-    tmp = np.empty(6)
-    for p in range(n):
-        low = chol[p]
-        for a in range(6):
-            s = r[p, a]
-            for k in range(a):
-                s -= low[a, k] * tmp[k]
-            tmp[a] = s / low[a, a]
-        for a in range(5, -1, -1):
-            s = tmp[a]
-            for k in range(a + 1, 6):
-                s -= low[k, a] * z[p, k]
-            z[p, a] = s / low[a, a]
-
-
-@njit(cache=True)
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    s = 0.0
-    for p in range(a.shape[0]):
-        for c in range(a.shape[1]):
-            s += a[p, c] * b[p, c]
-    return s
-
-
-@njit(cache=True)
 def _cholesky_6(a: np.ndarray, low: np.ndarray) -> bool:
     """Lower Cholesky factor of one 6x6 SPD block into ``low``; False if not positive definite."""
     for r in range(6):
@@ -151,6 +95,37 @@ def _cholesky_solve_6(low: np.ndarray, b: np.ndarray, out: np.ndarray, tmp: np.n
         for k in range(a + 1, 6):
             s -= low[k, a] * out[k]
         out[a] = s / low[a, a]
+
+
+@njit(cache=True)
+def cholesky_blocks(diag: np.ndarray) -> tuple[np.ndarray, bool]:
+    """Lower Cholesky factors of every 6x6 diagonal block.
+
+    Returns:
+        (N, 6, 6) factors and a flag that is False if some block is not positive definite.
+    """
+    n = diag.shape[0]
+    chol = np.zeros((n, 6, 6))
+    for p in range(n):
+        if not _cholesky_6(diag[p], chol[p]):
+            return chol, False
+    return chol, True
+
+
+@njit(cache=True)
+def _apply_block_jacobi(chol: np.ndarray, r: np.ndarray, z: np.ndarray, buf: np.ndarray) -> None:
+    """``z = D^-1 r`` using the Cholesky factors of the diagonal blocks (``buf``: 6-vector work buffer)."""
+    for p in range(chol.shape[0]):
+        _cholesky_solve_6(chol[p], r[p], z[p], buf)
+
+
+@njit(cache=True)
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    s = 0.0
+    for p in range(a.shape[0]):
+        for c in range(a.shape[1]):
+            s += a[p, c] * b[p, c]
+    return s
 
 
 @njit(cache=True)
@@ -329,7 +304,7 @@ def solve_resistance(
     if use_dilu:
         _apply_dilu(dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf)
     else:
-        _apply_block_jacobi(chol, r, z)
+        _apply_block_jacobi(chol, r, z, work_buf)
     p = z.copy()
     rz = _dot(r, z)
     for it in range(1, max_iterations + 1):
@@ -350,7 +325,7 @@ def solve_resistance(
                 dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf
             )
         else:
-            _apply_block_jacobi(chol, r, z)
+            _apply_block_jacobi(chol, r, z, work_buf)
         rz_new = _dot(r, z)
         beta = rz_new / rz
         rz = rz_new
