@@ -13,8 +13,8 @@ modified block is not positive definite the block-Jacobi preconditioner (exact 6
 the diagonal blocks) is used instead. The initial guess comes from the caller (a warm start). The
 iteration stops when ``||b - R V'||_2 <= tol * ||b||_2``; the default ``tol = 1e-8`` makes the solver
 error far below the statistical error of any stress average. Failure to converge is reported, never
-hidden. At phi = 0.45 DILU needs about 3x fewer iterations than block-Jacobi (52 vs 154 at N = 500) and
-its count does not grow with N (benchmarks/run.py).
+hidden. At phi = 0.45 DILU needs about 3x fewer iterations than block-Jacobi (45-52 vs 154 at N = 500);
+its count grows slowly with N (37 at N = 250, 61 at N = 2000; benchmarks/run.py).
 
 References:
     Hestenes, M. R. & Stiefel, E. (1952) J. Res. Natl. Bur. Stand. 49, 409-436.
@@ -177,8 +177,16 @@ def dilu_factor(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray) -> tuple[n
     Returns:
         (N, 6, 6) lower Cholesky factors of ``D~`` and False if some ``D~_p`` is not positive definite.
     """
+    lstart, lorder = _lower_pair_index(diag.shape[0], pairs)
+    return _dilu_factor_indexed(diag, off, pairs, lstart, lorder)
+
+
+@njit(cache=True)
+def _dilu_factor_indexed(
+    diag: np.ndarray, off: np.ndarray, pairs: np.ndarray, lstart: np.ndarray, lorder: np.ndarray
+) -> tuple[np.ndarray, bool]:
+    """:func:`dilu_factor` with the lower-pair index of :func:`_lower_pair_index` supplied."""
     n = diag.shape[0]
-    lstart, lorder = _lower_pair_index(n, pairs)
     chol = np.zeros((n, 6, 6))
     work = np.empty((6, 6))
     col = np.empty(6)
@@ -279,17 +287,20 @@ def solve_resistance(
         positive definite), final relative residual.
     """
     n = diag.shape[0]
-    chol, ok = cholesky_blocks(diag)
     bnorm = math.sqrt(_dot(rhs, rhs))
     x = initial_guess.copy()
-    if not ok or not math.isfinite(bnorm):
+    if not math.isfinite(bnorm):
         return x, -1, np.inf
-    if pairs_are_sorted(pairs):
-        dilu_chol, use_dilu = dilu_factor(diag, off, pairs)
-    else:
-        dilu_chol, use_dilu = chol, False
     lstart, lorder = _lower_pair_index(n, pairs)
     ustart = _upper_pair_index(n, pairs)
+    chol = np.empty((0, 6, 6))
+    use_dilu = False
+    if pairs_are_sorted(pairs):
+        chol, use_dilu = _dilu_factor_indexed(diag, off, pairs, lstart, lorder)
+    if not use_dilu:  # block-Jacobi fallback, which also checks that the diagonal blocks are SPD
+        chol, ok = cholesky_blocks(diag)
+        if not ok:
+            return x, -1, np.inf
     y_buf = np.empty((n, 6))
     acc_buf = np.empty(6)
     tmp_buf = np.empty(6)
@@ -302,7 +313,7 @@ def solve_resistance(
         return x, 0, rnorm / bnorm
     z = np.empty((n, 6))
     if use_dilu:
-        _apply_dilu(dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf)
+        _apply_dilu(chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf)
     else:
         _apply_block_jacobi(chol, r, z, work_buf)
     p = z.copy()
@@ -321,9 +332,7 @@ def solve_resistance(
         if rnorm <= tolerance * bnorm:
             return x, it, rnorm / bnorm
         if use_dilu:
-            _apply_dilu(
-                dilu_chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf
-            )
+            _apply_dilu(chol, off, pairs, lstart, lorder, ustart, r, z, y_buf, acc_buf, tmp_buf, work_buf)
         else:
             _apply_block_jacobi(chol, r, z, work_buf)
         rz_new = _dot(r, z)
