@@ -149,7 +149,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"python -m sim: simulation failed: {exc}", file=sys.stderr)
         return 1
     if args.json:
-        print(json.dumps(result))
+        from sim.io import json_ready
+
+        print(json.dumps(json_ready(result)))
     else:
         print(
             f"phi = {config.volume_fraction}, N = {config.n_particles}, strain = {result['strain']:.2f} "

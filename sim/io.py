@@ -46,19 +46,39 @@ def versions() -> dict[str, str]:
     }
 
 
+_NON_FINITE = {"nan": float("nan"), "inf": float("inf"), "-inf": float("-inf")}
+
+
+def json_ready(value: Any) -> Any:
+    """Copy of ``value`` with non-finite floats as ``"nan"``, ``"inf"``, ``"-inf"`` (keeps JSON standard)."""
+    if isinstance(value, float) and not np.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: json_ready(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(v) for v in value]
+    return value
+
+
+def from_json_ready(value: Any) -> Any:
+    """Inverse of :func:`json_ready`."""
+    if isinstance(value, str) and value in _NON_FINITE:
+        return _NON_FINITE[value]
+    if isinstance(value, dict):
+        return {k: from_json_ready(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [from_json_ready(v) for v in value]
+    return value
+
+
 def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write ``data`` as indented JSON (``inf``/``nan`` as strings, so the file stays standard JSON)."""
+    """Write ``data`` as indented standard JSON (non-finite numbers as strings, see :func:`json_ready`)."""
+    path.write_text(json.dumps(json_ready(data), indent=2) + "\n")
 
-    def clean(value: Any) -> Any:
-        if isinstance(value, float) and not np.isfinite(value):
-            return str(value)
-        if isinstance(value, dict):
-            return {k: clean(v) for k, v in value.items()}
-        if isinstance(value, list | tuple):
-            return [clean(v) for v in value]
-        return value
 
-    path.write_text(json.dumps(clean(data), indent=2) + "\n")
+def read_json(path: Path) -> dict[str, Any]:
+    """Read a file written by :func:`write_json`, restoring non-finite numbers."""
+    return from_json_ready(json.loads(path.read_text()))
 
 
 def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | None = None) -> None:

@@ -6,13 +6,13 @@ parallel map; here it uses a local process pool (a Dask or cluster backend can c
 
 from __future__ import annotations
 
-import json
 import multiprocessing as mp
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from sim.config import SimulationConfig
+from sim.io import read_json
 
 
 def run_name(config: SimulationConfig) -> str:
@@ -30,7 +30,7 @@ def run_one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
     out = Path(args[1]) / run_name(config)
     result_file = out / "result.json"
     if result_file.exists():  # finished earlier: a sweep can be re-run to fill gaps
-        return json.loads(result_file.read_text())
+        return read_json(result_file)
     return run_simulation(config, out, progress=False)
 
 

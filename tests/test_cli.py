@@ -58,7 +58,12 @@ def test_json_contract(tmp_path) -> None:
         "0,1,0",
     ]
     proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
-    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    last = proc.stdout.strip().splitlines()[-1]
+
+    def reject(token: str) -> None:
+        raise AssertionError(f"non-standard JSON token {token} in the --json line")
+
+    result = json.loads(last, parse_constant=reject)  # strict JSON: no NaN / Infinity tokens
     for key in (
         "relative_viscosity",
         "relative_viscosity_stderr",
