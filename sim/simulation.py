@@ -21,6 +21,9 @@ from sim.observables.stress import N_CONTRIBUTIONS, STRESS_CONTRIBUTIONS, block_
 from sim.state import SimulationState
 from sim.stepper import STATUS_MESSAGES, STATUS_OK, advance
 
+OVERLAP_MAX_SWEEPS = 10_000
+"""Sweeps after which overlap removal gives up and the step fails (in practice 1-3 are needed)."""
+
 
 class SimulationError(RuntimeError):
     """A step failed (solver or overlap removal did not converge); the message says where."""
@@ -54,13 +57,17 @@ class StepRecords:
             np.zeros(0, dtype=np.int64),
         )
 
-    def append(self, other: StepRecords) -> StepRecords:
-        return StepRecords(
-            np.concatenate([self.strain, other.strain]),
-            np.concatenate([self.stress, other.stress]),
-            np.concatenate([self.min_gap, other.min_gap]),
-            np.concatenate([self.solver_iterations, other.solver_iterations]),
-            np.concatenate([self.overlap_sweeps, other.overlap_sweeps]),
+    @classmethod
+    def concatenate(cls, parts: list[StepRecords]) -> StepRecords:
+        """Records of consecutive chunks joined in order (empty records for no chunk)."""
+        if not parts:
+            return cls.empty()
+        return cls(
+            np.concatenate([p.strain for p in parts]),
+            np.concatenate([p.stress for p in parts]),
+            np.concatenate([p.min_gap for p in parts]),
+            np.concatenate([p.solver_iterations for p in parts]),
+            np.concatenate([p.overlap_sweeps for p in parts]),
         )
 
     def arrays(self) -> dict[str, Any]:
@@ -133,8 +140,19 @@ class Simulation:
                 f"state has {state.positions.shape[0]} particles but config.n_particles={config.n_particles}"
             )
         self.state = state
-        self.records = StepRecords.empty()
+        self._chunks: list[StepRecords] = []
         self._force_scale = repulsion_scale(config.repulsion_shear_rate_ratio)
+
+    @property
+    def records(self) -> StepRecords:
+        """All step records so far (chunks are joined once, when read, not on every step)."""
+        if len(self._chunks) != 1:
+            self._chunks = [StepRecords.concatenate(self._chunks)]
+        return self._chunks[0]
+
+    @records.setter
+    def records(self, value: StepRecords) -> None:
+        self._chunks = [value]
 
     # -- state -----------------------------------------------------------------------------------------
     def snapshot(self) -> SimulationState:
@@ -145,7 +163,7 @@ class Simulation:
         """Continue from ``state``; the step records are cleared unless ``keep_records``."""
         self.state = state.copy()
         if not keep_records:
-            self.records = StepRecords.empty()
+            self._chunks = []
 
     # -- stepping --------------------------------------------------------------------------------------
     def advance(self, n_steps: int) -> StepRecords:
@@ -172,10 +190,10 @@ class Simulation:
             c.solver_tolerance,
             c.solver_max_iterations,
             c.overlap_min_gap,
-            10000,
+            OVERLAP_MAX_SWEEPS,
         )
         chunk = StepRecords(strains[:done], stress[:done], gaps[:done], iterations[:done], sweeps[:done])
-        self.records = self.records.append(chunk)
+        self._chunks.append(chunk)
         s.strain = strain
         s.has_previous = has_previous
         s.stored_solutions = stored

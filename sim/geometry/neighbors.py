@@ -40,6 +40,28 @@ _CELL_MARGIN = 1e-9
 
 
 @njit(cache=True)
+def group_by_particle(keys: np.ndarray, items: np.ndarray, n_particles: int) -> tuple[np.ndarray, np.ndarray]:
+    """Stable counting sort of the indices ``items`` by particle index ``keys[item]`` (in ``[0, N)``).
+
+    Returns:
+        ``start`` (N + 1,) and ``grouped`` (len(items),) int64: the items whose key is ``p`` are
+        ``grouped[start[p]:start[p + 1]]``, in their input order (CSR layout).
+    """
+    start = np.zeros(n_particles + 1, dtype=np.int64)
+    for t in range(items.shape[0]):
+        start[keys[items[t]] + 1] += 1
+    for p in range(n_particles):
+        start[p + 1] += start[p]
+    fill = start[:-1].copy()
+    grouped = np.empty(items.shape[0], dtype=np.int64)
+    for t in range(items.shape[0]):
+        k = items[t]
+        grouped[fill[keys[k]]] = k
+        fill[keys[k]] += 1
+    return start, grouped
+
+
+@njit(cache=True)
 def build_pair_list_brute_force(
     positions: np.ndarray, box_length: float, offset: float, cutoff: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -372,27 +394,8 @@ def build_pair_list(
 
     # Order by (i, j): least-significant-digit radix sort, a stable counting sort on j and then
     # one on i (no comparisons), followed by one gather.
-    count = np.zeros(n + 1, dtype=np.int64)
-    for k in range(m):
-        count[buf_j[k] + 1] += 1
-    for t in range(n):
-        count[t + 1] += count[t]
-    by_j = np.empty(m, dtype=np.int64)
-    for k in range(m):
-        jj = buf_j[k]
-        by_j[count[jj]] = k
-        count[jj] += 1
-    count[:] = 0
-    for k in range(m):
-        count[buf_i[k] + 1] += 1
-    for t in range(n):
-        count[t + 1] += count[t]
-    order = np.empty(m, dtype=np.int64)
-    for t in range(m):
-        k = by_j[t]
-        ii = buf_i[k]
-        order[count[ii]] = k
-        count[ii] += 1
+    _, by_j = group_by_particle(buf_j, np.arange(m), n)
+    _, order = group_by_particle(buf_i, by_j, n)
     pairs = np.empty((m, 2), dtype=np.int64)
     seps = np.empty((m, 3), dtype=np.float64)
     for t in range(m):

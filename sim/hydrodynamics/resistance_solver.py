@@ -28,6 +28,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sim.geometry.neighbors import group_by_particle
+
 
 @njit(cache=True)
 def block_matvec(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -129,35 +131,6 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def _lower_pair_index(n: int, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """CSR index of the pairs by their larger particle index: pairs with ``j == p`` are
-    ``order[start[p]:start[p + 1]]``, in increasing pair order."""
-    start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(pairs.shape[0]):
-        start[pairs[k, 1] + 1] += 1
-    for p in range(n):
-        start[p + 1] += start[p]
-    fill = start[:-1].copy()
-    order = np.empty(pairs.shape[0], dtype=np.int64)
-    for k in range(pairs.shape[0]):
-        j = pairs[k, 1]
-        order[fill[j]] = k
-        fill[j] += 1
-    return start, order
-
-
-@njit(cache=True)
-def _upper_pair_index(n: int, pairs: np.ndarray) -> np.ndarray:
-    """Pairs with ``i == p`` are ``start[p]:start[p + 1]`` (pairs are sorted by ``i``)."""
-    start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(pairs.shape[0]):
-        start[pairs[k, 0] + 1] += 1
-    for p in range(n):
-        start[p + 1] += start[p]
-    return start
-
-
-@njit(cache=True)
 def pairs_are_sorted(pairs: np.ndarray) -> bool:
     """True if every pair has ``i < j`` and ``i`` never decreases (the DILU sweeps need this order)."""
     for k in range(pairs.shape[0]):
@@ -177,7 +150,7 @@ def dilu_factor(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray) -> tuple[n
     Returns:
         (N, 6, 6) lower Cholesky factors of ``D~`` and False if some ``D~_p`` is not positive definite.
     """
-    lstart, lorder = _lower_pair_index(diag.shape[0], pairs)
+    lstart, lorder = group_by_particle(pairs[:, 1], np.arange(pairs.shape[0]), diag.shape[0])
     return _dilu_factor_indexed(diag, off, pairs, lstart, lorder)
 
 
@@ -185,7 +158,7 @@ def dilu_factor(diag: np.ndarray, off: np.ndarray, pairs: np.ndarray) -> tuple[n
 def _dilu_factor_indexed(
     diag: np.ndarray, off: np.ndarray, pairs: np.ndarray, lstart: np.ndarray, lorder: np.ndarray
 ) -> tuple[np.ndarray, bool]:
-    """:func:`dilu_factor` with the lower-pair index of :func:`_lower_pair_index` supplied."""
+    """:func:`dilu_factor` with the pairs grouped by their larger index (``group_by_particle``) supplied."""
     n = diag.shape[0]
     chol = np.zeros((n, 6, 6))
     work = np.empty((6, 6))
@@ -291,8 +264,9 @@ def solve_resistance(
     x = initial_guess.copy()
     if not math.isfinite(bnorm):
         return x, -1, np.inf
-    lstart, lorder = _lower_pair_index(n, pairs)
-    ustart = _upper_pair_index(n, pairs)
+    all_pairs = np.arange(pairs.shape[0])
+    lstart, lorder = group_by_particle(pairs[:, 1], all_pairs, n)  # pairs (i, p) with i < p
+    ustart, _ = group_by_particle(pairs[:, 0], all_pairs, n)  # pairs (p, j): contiguous, pairs sorted by i
     chol = np.empty((0, 6, 6))
     use_dilu = False
     if pairs_are_sorted(pairs):
