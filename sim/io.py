@@ -36,9 +36,11 @@ def versions() -> dict[str, str]:
     import scipy
 
     from sim import __version__
+    from sim.numba_cache import source_digest
 
     return {
         "sim": __version__,
+        "sim_source": source_digest(Path(__file__).resolve().parent),
         "python": platform.python_version(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,

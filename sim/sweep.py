@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from sim.config import SimulationConfig
-from sim.io import read_json
+from sim.io import read_json, versions
 
 
 def run_name(config: SimulationConfig) -> str:
@@ -29,9 +29,22 @@ def run_one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:
     config = SimulationConfig.from_dict(args[0])
     out = Path(args[1]) / run_name(config)
     result_file = out / "result.json"
-    if result_file.exists():  # finished earlier: a sweep can be re-run to fill gaps
+    if result_file.exists() and _same_run(out, config):  # finished earlier: re-running fills gaps only
         return read_json(result_file)
     return run_simulation(config, out, progress=False)
+
+
+def _same_run(out: Path, config: SimulationConfig) -> bool:
+    """True if ``out`` holds a run of ``config`` made by the same ``sim`` sources (digest in params.json)."""
+    params_file = out / "params.json"
+    if not params_file.exists():
+        return False
+    params = read_json(params_file)
+    try:
+        same_config = SimulationConfig.from_dict(params["config"]) == config
+    except (KeyError, TypeError, ValueError):
+        return False
+    return same_config and params.get("versions", {}).get("sim_source") == versions()["sim_source"]
 
 
 def run_sweep(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from sim.hydrodynamics.resistance_solver import (
     block_matvec,
@@ -10,6 +11,7 @@ from sim.hydrodynamics.resistance_solver import (
     dilu_factor,
     pairs_are_sorted,
     solve_resistance,
+    solve_resistance_in_order,
 )
 
 
@@ -113,6 +115,7 @@ def test_dilu_is_exact_on_a_tree() -> None:
 
 
 def test_dilu_factor_detects_indefinite_blocks_and_unsorted_pairs_fall_back() -> None:
+    """Label-order PCG falls back to block-Jacobi for unsorted pairs (right answer, more iterations)."""
     diag, off, pairs, rng = _chain_system(5)
     bad = diag.copy()
     bad[0] = -np.eye(6)
@@ -120,11 +123,60 @@ def test_dilu_factor_detects_indefinite_blocks_and_unsorted_pairs_fall_back() ->
     assert not ok
     assert pairs_are_sorted(pairs)
     assert not pairs_are_sorted(pairs[::-1].copy())
-    # reversed pair order: DILU is skipped, block-Jacobi still gives the right answer (more iterations)
     flipped = pairs[::-1].copy()
     off_flipped = off[::-1].copy()
     n = diag.shape[0]
     b = rng.normal(size=(n, 6))
-    sol, iterations, _ = solve_resistance(diag, off_flipped, flipped, b, np.zeros((n, 6)), 1e-10, 1000)
+    sol, iterations, _ = solve_resistance_in_order(
+        diag, off_flipped, flipped, b, np.zeros((n, 6)), 1e-10, 1000
+    )
     assert iterations > 1
     np.testing.assert_allclose(block_matvec(diag, off_flipped, flipped, sol), b, rtol=1e-8, atol=1e-8)
+
+
+def test_any_labelling_of_a_tree_is_solved_exactly() -> None:
+    """Shuffled labels, reversed pair order and swapped pair ends: the elimination order recovers the
+    tree, so DILU is again the exact factorisation and PCG converges in one iteration (to 1e-10)."""
+    diag, off, pairs, rng = _chain_system(6, n=40)
+    n = diag.shape[0]
+    labels = rng.permutation(n)
+    shuffled_pairs = labels[pairs][::-1].copy()
+    shuffled_off = off[::-1].copy()
+    swap = rng.random(len(pairs)) < 0.5
+    shuffled_pairs[swap] = shuffled_pairs[swap][:, ::-1]
+    shuffled_off[swap] = np.transpose(shuffled_off[swap], (0, 2, 1))
+    shuffled_diag = np.empty_like(diag)
+    shuffled_diag[labels] = diag
+    b = rng.normal(size=(n, 6))
+    _, in_label_order, _ = solve_resistance_in_order(
+        shuffled_diag, shuffled_off, shuffled_pairs, b, np.zeros((n, 6)), 1e-10, 1000
+    )
+    sol, iterations, residual = solve_resistance(
+        shuffled_diag, shuffled_off, shuffled_pairs, b, np.zeros((n, 6)), 1e-10, 100
+    )
+    assert in_label_order > 1
+    assert iterations == 1 and residual <= 1e-10
+    np.testing.assert_allclose(
+        block_matvec(shuffled_diag, shuffled_off, shuffled_pairs, sol), b, rtol=1e-9, atol=1e-9
+    )
+
+
+@pytest.mark.parametrize("seed", [7, 8])
+def test_eisenstat_iteration_matches_plain_pcg(seed: int) -> None:
+    """Eisenstat's form of DILU-PCG has the same iterates as plain PCG in exact arithmetic: same answer
+    (dense solve, 1e-7 relative, i.e. condition number x tolerance), true residual within the tolerance,
+    and iteration counts within 2 (the transformed residual only decides when to check the true one)."""
+    diag, off, pairs, dense, rng = _random_system(seed, n=30, m=70)
+    n = diag.shape[0]
+    b = rng.normal(size=(n, 6))
+    exact = np.linalg.solve(dense, b.ravel())
+    results = {}
+    for eisenstat in (False, True):
+        sol, iterations, residual = solve_resistance_in_order(
+            diag, off, pairs, b, np.zeros((n, 6)), 1e-10, 10000, eisenstat
+        )
+        true = np.linalg.norm(b.ravel() - dense @ sol.ravel()) / np.linalg.norm(b)
+        assert iterations > 0 and residual <= 1e-10 and true <= 1e-10
+        assert np.linalg.norm(sol.ravel() - exact) / np.linalg.norm(exact) < 1e-7
+        results[eisenstat] = iterations
+    assert abs(results[True] - results[False]) <= 2

@@ -26,3 +26,24 @@ def test_pool_sweep_matches_direct_runs_and_reuses_results(tmp_path) -> None:
     for cached, fresh in zip(again, results, strict=True):  # same values and types (nan compares unequal)
         assert json.dumps(cached, sort_keys=True) == json.dumps(fresh, sort_keys=True)
     assert not (tmp_path / "sweep" / run_name(CONFIGS[0]) / "timeseries.csv").exists()
+
+
+def test_results_from_other_sources_or_parameters_are_recomputed(tmp_path) -> None:
+    """A result is reused only if params.json names the same config and the same ``sim`` source digest."""
+    config = CONFIGS[0]
+    run_dir = tmp_path / "sweep" / run_name(config)
+    run_sweep([config], tmp_path / "sweep", processes=1)
+    params_file = run_dir / "params.json"
+    params = json.loads(params_file.read_text())
+    params["versions"]["sim_source"] = "0" * 16  # as if written by an older version of the simulator
+    params_file.write_text(json.dumps(params))
+    (run_dir / "timeseries.csv").unlink()
+    run_sweep([config], tmp_path / "sweep", processes=1)
+    assert (run_dir / "timeseries.csv").exists()  # recomputed
+    assert json.loads(params_file.read_text())["versions"]["sim_source"] != "0" * 16
+    params = json.loads(params_file.read_text())
+    params["config"]["seed"] = 99  # a different run left in this directory
+    params_file.write_text(json.dumps(params))
+    (run_dir / "timeseries.csv").unlink()
+    run_sweep([config], tmp_path / "sweep", processes=1)
+    assert (run_dir / "timeseries.csv").exists()

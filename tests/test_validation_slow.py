@@ -1,6 +1,6 @@
 """Slow validation of pure-shear rheology against Maron–Pierce (marked ``slow``).
 
-Run with ``python -m pytest -m slow`` (about 6 minutes on 2 cores). Settings: N = 200, strain 30,
+Run with ``python -m pytest -m slow`` (about 3 minutes on 2 cores). Settings: N = 200, strain 30,
 dt = 2e-3, averages over strain 10-30 with 10 blocks, seed 1, default lubrication (cut-off 0.5 a,
 regularisation 1e-4 a). The table is written to ``runs/validation/table.md`` and reproduced in the README.
 
