@@ -15,6 +15,7 @@ NUMBA_CACHE_DIR = configure_numba_cache()
 from sim.config import SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
+from sim.observables.interparticle_stress import InterparticleStress, interparticle_stress
 from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
 from sim.run import run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords
@@ -23,6 +24,7 @@ from sim.state import SimulationState
 __all__ = [
     "STRESS_CONTRIBUTIONS",
     "BlockAverage",
+    "InterparticleStress",
     "LeesEdwardsBox",
     "RheologyResult",
     "Simulation",
@@ -33,6 +35,7 @@ __all__ = [
     "__version__",
     "block_average",
     "box_length_for",
+    "interparticle_stress",
     "random_packing",
     "rheology",
     "run_simulation",

@@ -1,0 +1,57 @@
+"""Repulsion stress split: direct virial vs the hydrodynamic stresslet the repulsion induces."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim import Simulation, SimulationConfig
+from sim.observables.interparticle_stress import interparticle_stress
+
+
+def _deviator(s: np.ndarray) -> np.ndarray:
+    return s - np.trace(s) / 3.0 * np.eye(3)
+
+
+@pytest.mark.parametrize("gap", [1e-3, 1e-4, 1e-5])
+def test_isolated_pair_near_contact_carries_no_deviatoric_interparticle_stress(gap: float) -> None:
+    """Independent limit: internal forces in a rigid body carry no particle stress (Batchelor 1970).
+    Lubrication makes a touching pair rigid along its line of centres, so (no regularisation) the
+    induced stresslet cancels the deviatoric virial up to O(gap): measured 2.5 * gap relative, bound
+    5 * gap. The isotropic part (a particle pressure) does not cancel: the stresslet is traceless."""
+    config = SimulationConfig(
+        n_particles=2,
+        volume_fraction=0.001,
+        lubrication_regularisation=0.0,
+        overlap_min_gap=1e-7,
+        initial_min_gap=1e-7,
+    )
+    centre = np.full(3, config.box_length / 2)
+    d = np.array([1.0, 2.0, -0.5]) / np.sqrt(5.25)
+    positions = np.array([centre - (1 + gap / 2) * d, centre + (1 + gap / 2) * d])
+    split = interparticle_stress(positions, 0.3, config)
+    virial = _deviator(split.virial)
+    assert np.linalg.norm(virial) > 0
+    assert np.linalg.norm(_deviator(split.total)) <= 5 * gap * np.linalg.norm(virial)
+    assert abs(np.trace(split.induced)) < 1e-12 * np.linalg.norm(split.induced)
+    assert np.trace(split.virial) < 0  # repulsion: a positive particle pressure -tr/3
+
+
+def test_sheared_suspension_repulsion_cancels_in_the_shear_stress() -> None:
+    """Dense sheared configurations (phi = 0.40, N = 60, strain 1, 3 seeds): the deviatoric total is
+    0.5-0.8% of the virial's (measured); bound 3%. This is why the paper can call the interparticle
+    stress negligible while the virial alone is a quarter of eta_r at this phi (README)."""
+    for seed in (1, 2, 3):
+        config = SimulationConfig(n_particles=60, volume_fraction=0.4, strain=1.0, seed=seed)
+        sim = Simulation(config)
+        sim.advance_to(1.0)
+        state = sim.state
+        split = interparticle_stress(state.positions, state.strain, config)
+        ratio = np.linalg.norm(_deviator(split.total)) / np.linalg.norm(_deviator(split.virial))
+        assert ratio < 0.03, (seed, ratio)
+
+
+def test_bad_positions_shape_is_named() -> None:
+    config = SimulationConfig(n_particles=4, volume_fraction=0.1)
+    with pytest.raises(ValueError, match="positions must have shape"):
+        interparticle_stress(np.zeros((3, 3)), 0.0, config)
