@@ -209,21 +209,7 @@ def _apply_dilu(
 
     ``y`` (N, 6) and ``acc``, ``tmp``, ``buf`` (6,) are work buffers (no allocation in the sweeps)."""
     n = chol.shape[0]
-    for p in range(n):  # (D~ + L) y = r
-        for a in range(6):
-            acc[a] = r[p, a]
-        for q in range(lstart[p], lstart[p + 1]):
-            k = lorder[q]
-            i = pairs[k, 0]
-            blk = off[k]  # A[p, i] = blk^T
-            for a in range(6):
-                s = 0.0
-                for b in range(6):
-                    s += blk[b, a] * y[i, b]
-                acc[a] -= s
-        _cholesky_solve_6(chol[p], acc, tmp, buf)
-        for a in range(6):
-            y[p, a] = tmp[a]
+    _forward_solve(chol, off, pairs, lstart, lorder, r, y, acc, tmp, buf)  # (D~ + L) y = r
     for p in range(n - 1, -1, -1):  # (D~ + L^T) z = D~ y  <=>  z_p = y_p - D~_p^-1 sum_{j>p} A_pj z_j
         for a in range(6):
             acc[a] = 0.0
