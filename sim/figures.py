@@ -34,3 +34,53 @@ def plot_rheology(records: StepRecords, path: Path, transient: float, title: str
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_viscosity_curve(
+    volume_fractions: list[float],
+    results: list[dict],
+    path: Path,
+    maron_pierce_phi_max: float = 0.63,
+) -> None:
+    """eta_r(phi) with Maron–Pierce ``(1 - phi/phi_m)^-2`` and N1, N2 (phi), one point per run.
+
+    ``results`` are run results (``result.json`` dictionaries: ``relative_viscosity``, ``n1``, ``n2`` and
+    their ``*_stderr``); error bars are one standard error.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    phi = np.asarray(volume_fractions)
+    fig, (ax_eta, ax_n) = plt.subplots(1, 2, figsize=(10, 4))
+    curve = np.linspace(0.0, max(phi.max(), 0.5) + 0.02, 200)
+    ax_eta.plot(
+        curve,
+        (1.0 - curve / maron_pierce_phi_max) ** -2,
+        "k--",
+        lw=1,
+        label=f"Maron–Pierce, $\\phi_m$ = {maron_pierce_phi_max}",
+    )
+    ax_eta.errorbar(
+        phi,
+        [r["relative_viscosity"] for r in results],
+        yerr=[r["relative_viscosity_stderr"] for r in results],
+        fmt="o",
+        label="simulation",
+    )
+    ax_eta.set_yscale("log")
+    ax_eta.set_xlabel(r"$\phi$")
+    ax_eta.set_ylabel(r"$\eta_r$")
+    ax_eta.legend()
+    for key, label in (("n1", r"$N_1$"), ("n2", r"$N_2$")):
+        ax_n.errorbar(
+            phi, [r[key] for r in results], yerr=[r[f"{key}_stderr"] for r in results], fmt="o-", label=label
+        )
+    ax_n.axhline(0.0, color="k", lw=0.5)
+    ax_n.set_xlabel(r"$\phi$")
+    ax_n.set_ylabel(r"normal stress difference / $\eta\dot\gamma$")
+    ax_n.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)

@@ -10,8 +10,8 @@ creates no fill along tree edges, so block DILU is the exact LDL^T factorisation
 of the matrix; only the weaker, loop-closing pairs are approximated. Spanning-tree preconditioners go
 back to Vaidya (1991); here the tree only fixes the order, and DILU still uses every pair.
 
-With the particles' own labels (arbitrary) DILU needs ~45-60 PCG iterations per step at phi = 0.45,
-growing with N; in this order it needs ~10, flat in N (benchmarks/run.py).
+At phi = 0.45 in steady shear (benchmarks/run.py, warm-started PCG to 1e-8) DILU in the particles' own
+(arbitrary) labels needs 68-85 iterations per step for N = 250-2000; in this order it needs 31-46.
 
 References:
     Kruskal, J. B. (1956) Proc. Amer. Math. Soc. 7, 48-50.
