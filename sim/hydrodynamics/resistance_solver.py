@@ -484,10 +484,6 @@ def solve_resistance_in_order(
         chol, ok = cholesky_blocks(diag)
         if not ok:
             return x, -1, np.inf
-    y_buf = np.empty((n, 6))
-    acc_buf = np.empty(6)
-    tmp_buf = np.empty(6)
-    work_buf = np.empty(6)
     if bnorm == 0.0:
         return np.zeros((n, 6)), 0, 0.0
     if use_dilu and eisenstat:
@@ -495,6 +491,10 @@ def solve_resistance_in_order(
             diag, off, pairs, chol, lstart, lorder, ustart, rhs, x, bnorm, tolerance, max_iterations
         )
         return x, iterations, residual
+    y_buf = np.empty((n, 6))
+    acc_buf = np.empty(6)
+    tmp_buf = np.empty(6)
+    work_buf = np.empty(6)
     r = rhs - block_matvec(diag, off, pairs, x)
     rnorm = math.sqrt(_dot(r, r))
     if rnorm <= tolerance * bnorm:
