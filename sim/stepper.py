@@ -61,6 +61,31 @@ def extra_velocity(positions: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def pair_system(
+    positions: np.ndarray,
+    box_length: float,
+    strain: float,
+    xi_cut: float,
+    delta: float,
+    force_scale: float,
+    force_range: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Pair list, lubrication scalars, block-sparse ``R_FU`` and repulsive forces at one configuration.
+
+    Returns:
+        pairs (M, 2), unit vectors (M, 3), lubrication scalars (M, 22), gaps (M,), diagonal (N, 6, 6)
+        and pair (M, 6, 6) blocks of ``R_FU``, repulsive forces (N, 3) and their virial sum (3, 3).
+    """
+    n = positions.shape[0]
+    offset = lees_edwards_offset(strain, box_length)
+    pairs, separations = build_pair_list(positions, box_length, offset, 2.0 + xi_cut)
+    scalars, units, gaps = pair_scalars(pairs, separations, xi_cut, delta)
+    diag, off = assemble_resistance(n, pairs, units, scalars, FORCE_DRAG, TORQUE_DRAG)
+    forces, virial = repulsive_forces(n, pairs, units, gaps, force_scale, force_range)
+    return pairs, units, scalars, gaps, diag, off, forces, virial
+
+
+@njit(cache=True)
 def evaluate(
     positions: np.ndarray,
     box_length: float,
@@ -90,13 +115,11 @@ def evaluate(
         eta gammadot, the minimum gap over listed pairs (inf if none), PCG iterations (-1 on failure).
     """
     n = positions.shape[0]
-    offset = lees_edwards_offset(strain, box_length)
-    pairs, separations = build_pair_list(positions, box_length, offset, 2.0 + xi_cut)
-    scalars, units, gaps = pair_scalars(pairs, separations, xi_cut, delta)
+    pairs, units, scalars, gaps, diag, off, forces, virial = pair_system(
+        positions, box_length, strain, xi_cut, delta, force_scale, force_range
+    )
     strain_rate = simple_shear_strain_rate()
-    diag, off = assemble_resistance(n, pairs, units, scalars, FORCE_DRAG, TORQUE_DRAG)
     rhs = strain_forcing(n, pairs, units, scalars, strain_rate)
-    forces, virial = repulsive_forces(n, pairs, units, gaps, force_scale, force_range)
     for p in range(n):
         for c in range(3):
             rhs[p, c] += forces[p, c]

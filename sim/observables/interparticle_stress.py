@@ -25,12 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.config import SimulationConfig
-from sim.contacts.repulsion import repulsion_scale, repulsive_forces
-from sim.geometry.box import lees_edwards_offset
-from sim.geometry.neighbors import build_pair_list
-from sim.hydrodynamics.lubrication import assemble_resistance, pair_scalars, pair_stresslets
+from sim.contacts.repulsion import repulsion_scale
+from sim.hydrodynamics.lubrication import pair_stresslets
 from sim.hydrodynamics.resistance_solver import solve_resistance
-from sim.hydrodynamics.stokes_drag import FORCE_DRAG, TORQUE_DRAG
+from sim.stepper import pair_system
 
 
 @dataclass(frozen=True)
@@ -70,15 +68,14 @@ def interparticle_stress(
     if positions.shape != (config.n_particles, 3):
         raise ValueError(f"positions must have shape ({config.n_particles}, 3), got {positions.shape}")
     length = config.box_length
-    pairs, separations = build_pair_list(
-        positions, length, lees_edwards_offset(strain, length), 2.0 + config.lubrication_cutoff
-    )
-    scalars, units, gaps = pair_scalars(
-        pairs, separations, config.lubrication_cutoff, config.lubrication_regularisation
-    )
-    diag, off = assemble_resistance(n, pairs, units, scalars, FORCE_DRAG, TORQUE_DRAG)
-    forces, virial = repulsive_forces(
-        n, pairs, units, gaps, repulsion_scale(config.repulsion_shear_rate_ratio), config.repulsion_range
+    pairs, units, scalars, _, diag, off, forces, virial = pair_system(
+        positions,
+        length,
+        strain,
+        config.lubrication_cutoff,
+        config.lubrication_regularisation,
+        repulsion_scale(config.repulsion_shear_rate_ratio),
+        config.repulsion_range,
     )
     rhs = np.zeros((n, 6))
     rhs[:, :3] = forces
