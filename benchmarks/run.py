@@ -1,6 +1,7 @@
 """Pure-shear step cost against system size: one command, one table.
 
     python benchmarks/run.py [--phi 0.45] [--sizes 100,250,500,1000,2000] [--steps 500] [--warmup-strain 3]
+    python benchmarks/run.py --quick   # N = 64, 250, 500; shorter warm-up and timing: under a minute
 
 For each N a fresh process builds a random packing, shears it for ``--warmup-strain`` (JIT compilation
 happens here and is excluded), then times ``--steps`` full compiled steps (``sim.stepper.advance``) and,
@@ -21,11 +22,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import resource
 import subprocess
 import sys
 import time
+from typing import NamedTuple
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
@@ -49,7 +52,7 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
     )
     from sim.hydrodynamics.resistance_solver import solve_resistance
     from sim.hydrodynamics.stokes_drag import FORCE_DRAG, TORQUE_DRAG
-    from sim.stepper import simple_shear_strain_rate
+    from sim.stepper import shear_strain_rate
 
     # JIT warm-up on a tiny system, then the memory baseline
     Simulation(SimulationConfig(n_particles=30, volume_fraction=0.3, strain=0.01)).advance(3)
@@ -68,7 +71,7 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
     # phases, re-run on the final configuration (same kernels as the step)
     s = sim.state
     length = config.box_length
-    e = simple_shear_strain_rate()
+    e = shear_strain_rate(1.0)
     reps = max(3, steps // 5)
     timings = {"neighbours": 0.0, "assembly": 0.0, "solve": 0.0, "stress": 0.0}
     for rep in range(reps + 1):  # rep 0 is untimed: first calls from Python load the cached kernels
@@ -123,19 +126,128 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
     }
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--phi", type=float, default=0.45)
-    parser.add_argument("--sizes", default="100,250,500,1000,2000")
-    parser.add_argument("--steps", type=int, default=500)
-    parser.add_argument("--warmup-strain", type=float, default=3.0)
+class Plan(NamedTuple):
+    """Default sizes, timed steps and warm-up strain of a benchmark run."""
+
+    sizes: str
+    steps: int
+    warmup_strain: float
+
+
+DEFAULTS = Plan(sizes="100,250,500,1000,2000", steps=500, warmup_strain=3.0)
+"""The measurement of the README table."""
+
+QUICK = Plan(sizes="64,250,500", steps=300, warmup_strain=2.0)
+"""``--quick``: the same measurement, smaller (about 20 s with compiled kernels, a minute more without);
+2 strains of warm-up reach the plateau of the PCG iterations, but fewer timed steps make it noisier."""
+
+
+def _sizes(text: str) -> list[int]:
+    """``--sizes``: comma-separated integers >= 2."""
+    try:
+        sizes = [int(part) for part in text.split(",")]
+    except ValueError:
+        sizes = []
+    if not sizes or any(n < 2 for n in sizes):
+        raise argparse.ArgumentTypeError(f"must be comma-separated integers >= 2, e.g. 100,250; got {text!r}")
+    return sizes
+
+
+def _positive_int(text: str) -> int:
+    """``--steps``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    """``--warmup-strain``: a finite number >= 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Options of the benchmark (defaults shown by ``--help``)."""
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--phi", type=float, default=0.45, help="volume fraction (default 0.45)")
+    parser.add_argument(
+        "--sizes",
+        type=_sizes,
+        default=None,
+        help=f"comma-separated particle numbers, one fresh process each (default {DEFAULTS.sizes}; "
+        f"--quick: {QUICK.sizes})",
+    )
+    parser.add_argument(
+        "--steps",
+        type=_positive_int,
+        default=None,
+        help=f"timed steps per size, after the warm-up (default {DEFAULTS.steps}; "
+        f"--quick: {QUICK.steps})",
+    )
+    parser.add_argument(
+        "--warmup-strain",
+        type=_non_negative,
+        default=None,
+        help=f"strain sheared before timing; includes JIT loading and the build-up of the contact network "
+        f"(default {DEFAULTS.warmup_strain}; --quick: {QUICK.warmup_strain})",
+    )
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="smaller defaults for a check that finishes in under a minute once the kernels are compiled "
+        "(explicit options still win); noisier than the README's table",
+    )
     parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    return parser
+
+
+def _resolve(args: argparse.Namespace) -> None:
+    """Fill the options left unset from ``--quick`` or the defaults."""
+    base = QUICK if args.quick else DEFAULTS
+    if args.sizes is None:
+        args.sizes = _sizes(base.sizes)
+    if args.steps is None:
+        args.steps = base.steps
+    if args.warmup_strain is None:
+        args.warmup_strain = base.warmup_strain
+
+
+def scaling_exponent(rows: list[dict]) -> tuple[int, int, float] | None:
+    """``(N_first, N_last, p)`` with cost per step ~ N^p between two rows, or None without two sizes.
+
+    The fit starts at N = 250 when that row exists and is not the last (smaller systems are dominated
+    by per-step overheads), else at the first row, and ends at the last row.
+    """
+    if len(rows) < 2:
+        return None
+    candidates = [r for r in rows[:-1] if r["n"] == 250]
+    first = candidates[0] if candidates else rows[0]
+    last = rows[-1]
+    if first["n"] == last["n"] or first["ms_step"] <= 0.0 or last["ms_step"] <= 0.0:
+        return None
+    slope = math.log(last["ms_step"] / first["ms_step"]) / math.log(last["n"] / first["n"])
+    return first["n"], last["n"], slope
+
+
+def main() -> None:
+    args = build_parser().parse_args()
+    _resolve(args)
     if args.child is not None:
         print(json.dumps(measure(args.child, args.phi, args.steps, args.warmup_strain)))
         return
     rows = []
-    for n in (int(x) for x in args.sizes.split(",")):
+    for n in args.sizes:
         cmd = [
             sys.executable,
             __file__,
@@ -148,7 +260,9 @@ def main() -> None:
             "--warmup-strain",
             str(args.warmup_strain),
         ]
-        proc = subprocess.run(cmd, capture_output=True, text=True, check=True)
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            sys.exit(f"N = {n} failed (exit status {proc.returncode}):\n{proc.stderr}")
         rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
         print(f"  N = {n} done", file=sys.stderr, flush=True)
     print(
@@ -168,13 +282,9 @@ def main() -> None:
             f"| {r['ms_solve']:.2f} | {r['ms_stress']:.2f} | {r['iterations_mean']:.0f} "
             f"| {r['particle_steps_per_s']:,.0f} | {r['working_mib']:.2f} | {r['peak_mib']:.1f} |"
         )
-    if len(rows) >= 2:
-        import math
-
-        first = next((r for r in rows if r["n"] == 250), rows[0])
-        last = rows[-1]
-        slope = math.log(last["ms_step"] / first["ms_step"]) / math.log(last["n"] / first["n"])
-        print(f"\ncost per step grows as N^{slope:.2f} from N = {first['n']} to N = {last['n']}")
+    fit = scaling_exponent(rows)
+    if fit is not None:
+        print(f"\ncost per step grows as N^{fit[2]:.2f} from N = {fit[0]} to N = {fit[1]}")
 
 
 if __name__ == "__main__":

@@ -12,16 +12,18 @@ from sim.numba_cache import configure_numba_cache
 
 NUMBA_CACHE_DIR = configure_numba_cache()
 
-from sim.config import SimulationConfig
+from sim.config import MECHANISMS, NEAR_FIELD_MODELS, SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
 from sim.observables.interparticle_stress import InterparticleStress, interparticle_stress
 from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
 from sim.run import run_simulation
-from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords
+from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
 from sim.state import SimulationState
 
 __all__ = [
+    "MECHANISMS",
+    "NEAR_FIELD_MODELS",
     "STRESS_CONTRIBUTIONS",
     "BlockAverage",
     "InterparticleStress",
@@ -39,4 +41,5 @@ __all__ = [
     "random_packing",
     "rheology",
     "run_simulation",
+    "summarise",
 ]

@@ -12,15 +12,33 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from sim.geometry.configurations import MAX_VOLUME_FRACTION, box_length_for
+from sim.geometry.configurations import MAX_VOLUME_FRACTION, MIN_VOLUME_FRACTION, box_length_for
 from sim.hydrodynamics.resistance_functions import (
     DEFAULT_LUBRICATION_CUTOFF,
     DEFAULT_LUBRICATION_REGULARISATION,
 )
 
 DEFAULT_TIME_STEP = 2.0e-3
-"""Default step in strain units: particles move about 0.1% of the mean spacing per step at phi = 0.45
-(paper: below 0.4%); the convergence study in the README supports it."""
+"""Default (largest) step in time units: particles move about 0.1% of the mean spacing per step at
+phi = 0.45 under pure shear (paper: below 0.4%); the convergence study in the README supports it."""
+
+DEFAULT_MAX_DISPLACEMENT = 4.0e-3
+"""Default bound on a step's non-affine displacement, as a fraction of the mean spacing ``n^(-1/3)``
+(paper §2.3: particles move less than 0.4% of the mean interparticle distance per step)."""
+
+MAX_PARTICLES = 50_000
+"""Largest N a run accepts (memory of the block-sparse system and the Ewald sums stays below ~10 GiB)."""
+
+MAX_STEPS = 100_000_000
+"""Most steps a run may be planned to take at the largest step (``strain / time_step``); a larger
+plan is almost certainly a typo in ``--dt`` and would run for days."""
+
+NEAR_FIELD_MODELS = ("exact", "none")
+"""``exact``: two-sphere functions blended in below ``near_field_cutoff``; ``none``: far field only."""
+
+MECHANISMS = ("dip", "icep", "dep")
+"""Dipolophoresis mechanisms: both (``dip``), induced-charge electrophoresis alone, dielectrophoresis
+alone (an electrorheological fluid)."""
 
 
 def _check_range(name: str, value: float, low: float, high: float, low_open: bool, high_open: bool) -> None:
@@ -39,14 +57,29 @@ class SimulationConfig:
     """Parameters of one run; a run is a pure function of this object (it includes the seed).
 
     Attributes:
-        n_particles: number of spheres N (>= 2; the box must also be at least twice the pair-list cut-off).
-        volume_fraction: phi = N (4/3) pi a^3 / L^3, in (0, 0.6].
-        mason_number: Mn = eta gammadot / (eps E0^2), > 0; ``inf`` is pure shear (the only value the
-            current simulator supports; dipolophoresis is not implemented yet).
+        n_particles: number of spheres N, in [2, 50000] (the box must also be at least twice the pair-list
+            cut-off).
+        volume_fraction: phi = N (4/3) pi a^3 / L^3, in [1e-3, 0.6].
+        mason_number: Mn = eta gammadot / (eps E0^2) of the initial field, in (0, inf]; ``inf`` is no
+            field (pure shear). With ``shear_rate = 0`` (quiescent) only its finiteness matters: the
+            field sets the units (time a/U0, stress eps E0^2).
         field_direction: unit vector of the electric field (normalised on construction); default y.
-        strain: total strain to run (>= 0).
+        mechanism: ``dip`` (ICEP + DEP, the paper's model), ``icep`` or ``dep`` (DEP alone: an
+            electrorheological fluid).
+        shear_rate: 1 (sheared; time is strain, U0 = a gammadot / Mn) or 0 (quiescent: field only, time
+            in units a/U0, stress in eps E0^2; Park & Saintillan 2010, Mirfendereski & Park 2019).
+        strain: total run length in time units (strain when sheared, a/U0 when quiescent), >= 0 (a run
+            through :func:`sim.run.run_simulation` needs > 0).
         seed: seed of the initial random packing.
-        time_step: AB2 step in strain units, in (0, 0.05].
+        time_step: largest AB2 step in time units, in (0, 0.05]; the step adapts below it.
+        max_displacement: bound on the non-affine displacement in one step, as a fraction of the mean
+            spacing ``n^(-1/3)``, in (0, 0.05]; the step is ``min(time_step, bound / max |U - u_inf|)``.
+        near_field: ``exact`` (default: exact two-sphere dipolophoresis functions for pairs closer than
+            ``near_field_cutoff``, blended into the far field) or ``none`` (far-field kernels only).
+        near_field_cutoff: ``r_c`` of the blend (centre distance, units a), in (2.5, 10] and below L/2.
+        near_field_taper: width over which the near-field correction is tapered to 0 at ``r_c``
+            (units a), in (0, r_c - 2).
+        ewald_accuracy: relative accuracy of the periodic far-field sums, in [1e-12, 1e-2].
         transient_strain: strain discarded before averaging; ``None`` means 10, or half the run if the
             run is shorter than 20.
         n_blocks: number of blocks for block-average standard errors (>= 2).
@@ -66,9 +99,16 @@ class SimulationConfig:
     volume_fraction: float
     mason_number: float = math.inf
     field_direction: tuple[float, float, float] = (0.0, 1.0, 0.0)
+    mechanism: str = "dip"
+    shear_rate: float = 1.0
     strain: float = 30.0
     seed: int = 0
     time_step: float = DEFAULT_TIME_STEP
+    max_displacement: float = DEFAULT_MAX_DISPLACEMENT
+    ewald_accuracy: float = 1.0e-6
+    near_field: str = "exact"
+    near_field_cutoff: float = 4.0
+    near_field_taper: float = 0.5
     transient_strain: float | None = None
     n_blocks: int = 10
     lubrication_cutoff: float = DEFAULT_LUBRICATION_CUTOFF
@@ -85,12 +125,30 @@ class SimulationConfig:
         if (
             isinstance(self.n_particles, bool)
             or not isinstance(self.n_particles, int)
-            or self.n_particles < 2
+            or not 2 <= self.n_particles <= MAX_PARTICLES
         ):
-            raise ValueError(f"n_particles must be an integer >= 2, got {self.n_particles!r}")
-        _check_range("volume_fraction", self.volume_fraction, 0.0, MAX_VOLUME_FRACTION, True, False)
-        if not (isinstance(self.mason_number, int | float) and self.mason_number > 0):
+            raise ValueError(
+                f"n_particles must be an integer in [2, {MAX_PARTICLES}], got {self.n_particles!r}"
+            )
+        _check_range(
+            "volume_fraction", self.volume_fraction, MIN_VOLUME_FRACTION, MAX_VOLUME_FRACTION, False, False
+        )
+        if not (
+            isinstance(self.mason_number, int | float)
+            and not isinstance(self.mason_number, bool)
+            and self.mason_number > 0
+        ):
             raise ValueError(f"mason_number must be in (0, inf], got {self.mason_number!r}")
+        if self.mechanism not in MECHANISMS:
+            raise ValueError(f"mechanism must be one of {', '.join(MECHANISMS)}, got {self.mechanism!r}")
+        if isinstance(self.shear_rate, bool) or self.shear_rate not in (0, 1):
+            raise ValueError(f"shear_rate must be 1 (sheared) or 0 (quiescent), got {self.shear_rate!r}")
+        object.__setattr__(self, "shear_rate", float(self.shear_rate))
+        if self.shear_rate == 0.0 and math.isinf(self.mason_number):
+            raise ValueError(
+                "mason_number must be finite when shear_rate = 0: a quiescent run needs the field "
+                "(mason_number = inf means no field)"
+            )
         direction = tuple(float(c) for c in self.field_direction)
         norm = math.sqrt(sum(c * c for c in direction))
         if len(direction) != 3 or not all(math.isfinite(c) for c in direction) or norm == 0.0:
@@ -102,6 +160,20 @@ class SimulationConfig:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         _check_range("time_step", self.time_step, 0.0, 0.05, True, False)
+        if self.strain / self.time_step > MAX_STEPS:
+            raise ValueError(
+                f"time_step={self.time_step!r} is too small for strain={self.strain!r}: the run would take "
+                f"{self.strain / self.time_step:.3g} steps (more than {MAX_STEPS:.0e}); time_step must be "
+                f">= {self.strain / MAX_STEPS:.3g}"
+            )
+        _check_range("max_displacement", self.max_displacement, 0.0, 0.05, True, False)
+        _check_range("ewald_accuracy", self.ewald_accuracy, 1.0e-12, 1.0e-2, False, False)
+        if self.near_field not in NEAR_FIELD_MODELS:
+            raise ValueError(
+                f"near_field must be one of {', '.join(NEAR_FIELD_MODELS)}, got {self.near_field!r}"
+            )
+        _check_range("near_field_cutoff", self.near_field_cutoff, 2.5, 10.0, True, False)
+        _check_range("near_field_taper", self.near_field_taper, 0.0, self.near_field_cutoff - 2.0, True, True)
         if self.transient_strain is not None:
             _check_range("transient_strain", self.transient_strain, 0.0, max(self.strain, 0.0), False, True)
         if isinstance(self.n_blocks, bool) or not isinstance(self.n_blocks, int) or self.n_blocks < 2:
@@ -132,6 +204,26 @@ class SimulationConfig:
                 f"2 + lubrication_cutoff); use n_particles >= {n_min}"
             )
 
+        if not math.isinf(self.mason_number):
+            self.check_near_field_box()
+
+    def check_near_field_box(self) -> None:
+        """Raise ``ValueError`` if the exact near field is on and the box is not wider than ``2 r_c``.
+
+        Called on construction when the initial field is on, and by :meth:`sim.Simulation.set_field`
+        when a field is switched on later (a pure-shear run may use a small box).
+        """
+        length = self.box_length
+        if self.near_field == "exact" and length <= 2.0 * self.near_field_cutoff:
+            volume = (4.0 / 3.0) * math.pi
+            n_min = math.floor(self.volume_fraction * (2.0 * self.near_field_cutoff) ** 3 / volume) + 1
+            raise ValueError(
+                f"near_field_cutoff={self.near_field_cutoff} needs a box side above "
+                f"{2 * self.near_field_cutoff} a, but n_particles={self.n_particles} at "
+                f"volume_fraction={self.volume_fraction} gives {length:.3f} a; use n_particles >= {n_min}, "
+                "a smaller near_field_cutoff, or near_field='none'"
+            )
+
     @property
     def box_length(self) -> float:
         """Side L of the cubic box (units a)."""
@@ -151,8 +243,18 @@ class SimulationConfig:
 
     @property
     def pure_shear(self) -> bool:
-        """True when ``Mn = inf`` (no electric field)."""
+        """True when ``Mn = inf`` (no electric field) for the whole run's initial field."""
         return math.isinf(self.mason_number)
+
+    @property
+    def quiescent(self) -> bool:
+        """True when there is no shear flow (``shear_rate = 0``)."""
+        return self.shear_rate == 0.0
+
+    @property
+    def mean_spacing(self) -> float:
+        """Mean interparticle spacing ``n^(-1/3) = L / N^(1/3)`` (units a)."""
+        return self.box_length / self.n_particles ** (1.0 / 3.0)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready parameters (``inf`` written as the string ``"inf"``)."""

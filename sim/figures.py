@@ -11,27 +11,32 @@ from sim.simulation import StepRecords
 
 
 def plot_rheology(records: StepRecords, path: Path, transient: float, title: str = "") -> None:
-    """eta_r, N1 and N2 (units eta gammadot) against strain, with the discarded transient shaded."""
+    """eta_r, N1 and N2 (units eta gammadot) against strain, with the discarded transient shaded.
+
+    A legend above the panels explains the marks: the per-step values (thin line), the transient that
+    the averages discard (grey band, strain 0 to ``transient``) and the mean over the rest (dashed line).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     eta, n1, n2 = rheology(records.total_stress)
-    fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7.4), sharex=True, layout="constrained")
     for ax, values, label in zip(
         axes, (eta, n1, n2), (r"$\eta_r$", r"$N_1/\eta\dot\gamma$", r"$N_2/\eta\dot\gamma$"), strict=True
     ):
-        ax.plot(records.strain, values, lw=0.6)
+        ax.plot(records.strain, values, lw=0.6, label="per step")
+        ax.axvspan(0.0, transient, color="0.9", label=f"transient (strain < {transient:g}), discarded")
         mask = records.strain >= transient
         if np.any(mask):
-            ax.axhline(values[mask].mean(), color="k", ls="--", lw=0.8)
-        ax.axvspan(0.0, transient, color="0.9")
+            ax.axhline(values[mask].mean(), color="k", ls="--", lw=0.8, label="mean after the transient")
         ax.set_ylabel(label)
     axes[-1].set_xlabel(r"strain $\dot\gamma t$")
     if title:
         axes[0].set_title(title)
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside upper center", ncol=3, fontsize="small", frameon=False)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 

@@ -4,8 +4,9 @@ A run directory holds:
 
 ================== ==================================================================================
 ``params.json``    every parameter of the run (``SimulationConfig``), box side, package versions
-``timeseries.csv`` per step: strain, min gap, solver iterations, overlap sweeps, eta_r, N1, N2 and the
-                   six independent stress components of every contribution (units eta gammadot)
+``timeseries.csv`` per step: strain (time when quiescent), step size, Mason number in force, min gap,
+                   solver iterations, overlap sweeps, RMS of the DIP and shear velocities, eta_r, N1,
+                   N2 and the six independent stress components of every contribution
 ``checkpoint.npz`` state + records + parameters; ``--resume`` continues from it bit for bit
 ``final_state.npz`` positions and the rest of the state at the end, with the box side and strain
 ``result.json``    averaged rheology with standard errors (the CLI's ``--json`` line)
@@ -91,7 +92,12 @@ def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | N
             "config": config.to_dict(),
             "box_length": config.box_length,
             "n_steps": config.n_steps,
-            "units": "a = eta = gammadot = 1; stress in eta*gammadot; time in strain",
+            "units": (
+                "a = eta = 1; quiescent (shear_rate 0): U0 = eps a E0^2/eta = 1, time in a/U0, "
+                "stress in eps E0^2"
+                if config.quiescent
+                else "a = eta = gammadot = 1; time in strain; stress in eta*gammadot; U0 = a gammadot / Mn"
+            ),
             "command": command,
             "versions": versions(),
         },
@@ -105,14 +111,31 @@ def write_timeseries(path: Path, records: StepRecords) -> None:
     columns = [
         np.arange(records.strain.size),
         records.strain,
+        records.time_step,
+        records.mason_number,
         records.min_gap,
         records.solver_iterations,
         records.overlap_sweeps,
+        records.u_rms_dip,
+        records.u_rms_shear,
         eta,
         n1,
         n2,
     ]
-    header = ["step", "strain", "min_gap", "solver_iterations", "overlap_sweeps", "eta_r", "N1", "N2"]
+    header = [
+        "step",
+        "strain",
+        "dt",
+        "mason_number",
+        "min_gap",
+        "solver_iterations",
+        "overlap_sweeps",
+        "u_rms_dip",
+        "u_rms_shear",
+        "eta_r",
+        "N1",
+        "N2",
+    ]
     for index, name in enumerate(STRESS_CONTRIBUTIONS):
         for label, a, b in _COMPONENTS:
             columns.append(records.stress[:, index, a, b])

@@ -14,9 +14,11 @@ from pathlib import Path
 
 
 def source_digest(package_dir: Path) -> str:
-    """SHA-256 (first 16 hex digits) of the relative paths and contents of all ``.py`` files below."""
+    """SHA-256 (first 16 hex digits) of the relative paths and contents of all ``.py`` files below and of
+    the data tables (``*/tables/*.txt``), which compiled kernels may bake in as constants."""
     digest = hashlib.sha256()
-    for path in sorted(package_dir.rglob("*.py")):
+    files = list(package_dir.rglob("*.py")) + list(package_dir.glob("*/tables/*.txt"))
+    for path in sorted(files):
         digest.update(path.relative_to(package_dir).as_posix().encode())
         digest.update(path.read_bytes())
     return digest.hexdigest()[:16]

@@ -3,15 +3,136 @@
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from sim import io
 from sim.config import SimulationConfig
 from sim.figures import plot_rheology
-from sim.simulation import Simulation
+from sim.simulation import Simulation, StepRecords
+from sim.state import SimulationState
+
+COMPILE_NOTICE = "compiling kernels (first run only, about a minute)..."
+"""Printed to stderr before a run whose compiled kernels are not in numba's cache yet."""
+
+
+def _name(parameter: str, names: Mapping[str, str] | None) -> str:
+    """How an error message names ``parameter`` (a config field or an argument of :func:`run_simulation`)."""
+    return (names or {}).get(parameter, parameter)
+
+
+def check_run_length(config: SimulationConfig, names: Mapping[str, str] | None = None) -> None:
+    """Raise ``ValueError`` unless the run takes at least one step and leaves a sample after the transient.
+
+    The stress is sampled at the start of every step, and steps are at most ``time_step`` long (they
+    may adapt below it), so the last sample of a run to ``strain`` may be as early as
+    ``strain - time_step``; the averages need one sample at or after the transient.
+
+    Args:
+        config: the run's parameters.
+        names: how messages name parameters (the command line passes its flags); field names by default.
+    """
+    strain, transient = _name("strain", names), _name("transient_strain", names)
+    if not config.strain > 0.0:
+        raise ValueError(
+            f"{strain} must be > 0 for a run (there is nothing to average otherwise), got {config.strain!r}"
+        )
+    earliest_last_sample = max(config.strain - config.time_step, 0.0)
+    if config.transient > earliest_last_sample:
+        default = " (the default: half of a run shorter than 20)" if config.transient_strain is None else ""
+        raise ValueError(
+            f"no samples after the transient: averaging starts at strain {config.transient:g}{default}, "
+            f"but the last stress sample of a {strain}={config.strain:g} run may be at strain "
+            f"{earliest_last_sample:g} (one per step of at most {_name('time_step', names)}="
+            f"{config.time_step:g}, taken at its start); lengthen {strain} or shorten {transient}"
+        )
+
+
+def _check_output_directory(out: Path, names: Mapping[str, str] | None) -> None:
+    """Refuse an output path that exists but is not a directory."""
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"{_name('out_dir', names)} {out} exists and is not a directory")
+
+
+def _differing_parameters(saved: SimulationConfig, requested: SimulationConfig) -> list[str]:
+    """Fields (other than ``strain``) in which two configurations differ."""
+    old, new = saved.to_dict(), requested.to_dict()
+    return [field for field in old if field != "strain" and old[field] != new.get(field)]
+
+
+def _load_resumable(
+    checkpoint: Path, config: SimulationConfig, names: Mapping[str, str] | None
+) -> tuple[SimulationState, StepRecords, float]:
+    """State, records and wall time of ``checkpoint`` if ``config`` may continue it, else ``ValueError``.
+
+    Only ``strain`` may differ from the checkpoint's parameters (extending a run), and the checkpoint
+    may not hold a step that a run to ``config.strain`` would not take (one starting at or after it).
+    """
+    resume = _name("resume", names)
+    if not checkpoint.exists():
+        raise FileNotFoundError(f"{resume}: no checkpoint at {checkpoint}")
+    saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
+    differing = _differing_parameters(saved_config, config)
+    if differing:
+        old, new = saved_config.to_dict(), config.to_dict()
+        listed = ", ".join(f"{_name(f, names)} ({old[f]!r} there, {new[f]!r} requested)" for f in differing)
+        raise ValueError(
+            f"{resume}: the checkpoint in {checkpoint.parent} was written with different parameters: "
+            f"{listed}; only {_name('strain', names)} may differ (to extend a run)"
+        )
+    last_start = float(records.strain[-1]) if records.strain.size else -math.inf
+    if last_start >= config.strain - 1e-9 * config.time_step:  # a run to config.strain stops before it
+        strain = _name("strain", names)
+        raise ValueError(
+            f"{resume}: the checkpoint in {checkpoint.parent} has already run past {strain}="
+            f"{config.strain:g} (its last step started at strain {last_start:g}); give a {strain} above "
+            f"{last_start:g}"
+        )
+    return state, records, wall_before
+
+
+def compiled_kernels_cached() -> bool:
+    """True when numba's cache holds compiled kernels of this checkout of ``sim`` (so no long compile).
+
+    The cache directory (``sim.NUMBA_CACHE_DIR``) is named after a hash of the ``sim/`` sources; inside
+    it numba keeps one folder per source directory, named after that directory's absolute path, holding
+    an index file (``*.nbi``) per compiled kernel. A checkout at another path, or other sources, find no
+    index files and compile. (Numba also checks each file's content, or before numba 0.68 its
+    modification time, when it loads a kernel; that finer check is not repeated here.)
+    """
+    import sim
+
+    cache = Path(sim.NUMBA_CACHE_DIR) if sim.NUMBA_CACHE_DIR else None
+    if cache is None or not cache.is_dir():
+        return False
+    try:
+        from numba.core.caching import _CacheLocator
+    except ImportError:  # another numba layout: any index at all
+        return any(cache.rglob("*.nbi"))
+    package = Path(os.path.abspath(sim.__file__)).parent
+    directories = {path.parent for path in package.rglob("*.py")}
+    return any(
+        any((cache / _CacheLocator.get_suitable_cache_subpath(str(d / "x.py"))).glob("*.nbi"))
+        for d in directories
+    )
+
+
+def _progress_bar(config: SimulationConfig, strain: float) -> Any:
+    """A tqdm bar on stderr from ``strain`` to ``config.strain``; its clock starts now."""
+    from tqdm import tqdm
+
+    return tqdm(
+        total=round(config.strain, 6),
+        initial=round(strain, 6),
+        unit="strain",
+        desc=f"phi={config.volume_fraction} N={config.n_particles}",
+        file=sys.stderr,
+        bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} strain [{elapsed}<{remaining}]",
+    )
 
 
 def run_simulation(
@@ -20,62 +141,81 @@ def run_simulation(
     progress: bool | None = None,
     resume: bool = False,
     command: list[str] | None = None,
+    parameter_names: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """Run (or resume) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
+    Every check of the input happens before anything is written: a refused run leaves no directory
+    behind.
+
     Args:
-        config: the run's parameters.
+        config: the run's parameters; ``strain`` must be > 0 and leave a sample after the transient.
         out_dir: output directory (created). With ``resume=True`` it must hold a ``checkpoint.npz`` written
-            with the same parameters; the run then continues bit-identically to an uninterrupted one.
-        progress: show a progress bar; ``None`` means only when stderr is a terminal.
+            with the same parameters except possibly a smaller ``strain`` (the run is then extended); the
+            run continues bit-identically to an uninterrupted run of ``config``.
+        progress: show a progress bar; ``None`` means only when stderr is a terminal. Unless ``False``,
+            a note goes to stderr before kernels are compiled (the first run of these sources).
         resume: continue from ``out_dir/checkpoint.npz``.
         command: the command line, recorded in ``params.json``.
+        parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
+            the command line passes its flags. Field names by default.
 
     Returns:
         The contents of ``result.json``: ``relative_viscosity``, ``relative_viscosity_stderr``, ``n1``,
         ``n1_stderr``, ``n2``, ``n2_stderr``, ``strain``, ``steps``, ``n_particles``, ``volume_fraction``,
-        ``min_gap``, ``wall_seconds`` and per-contribution means.
+        ``min_gap``, ``wall_seconds`` and per-contribution means. A standard error that needs more samples
+        than the run has after its transient (fewer than ``n_blocks``) is NaN.
+
+    Raises:
+        ValueError: bad input (the message names the parameter); FileNotFoundError: ``resume`` without a
+        checkpoint; NotImplementedError: a configuration the simulator does not support yet;
+        SimulationError: a step failed.
     """
+    names = parameter_names
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    check_run_length(config, names)
+    _check_output_directory(out, names)
     checkpoint = out / "checkpoint.npz"
+    state: SimulationState | None = None
+    records: StepRecords | None = None
     wall_before = 0.0
     if resume:
-        if not checkpoint.exists():
-            raise FileNotFoundError(f"--resume: no checkpoint at {checkpoint}")
-        saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
-        if saved_config != config:
-            raise ValueError(
-                f"--resume: the checkpoint in {out} was written with different parameters "
-                f"({saved_config.to_dict()}) than requested ({config.to_dict()})"
-            )
-        sim = Simulation(config, state)
+        state, records, wall_before = _load_resumable(checkpoint, config, names)
+    if progress is not False and not compiled_kernels_cached():
+        print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+    sim = Simulation(config, state)
+    if records is not None:
         sim.records = records
-    else:
-        sim = Simulation(config)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{_name('out_dir', names)} {out} cannot be created: {exc.strerror}") from exc
     io.write_params(out, config, command)
+    wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress)
+    return _write_results(sim, out, checkpoint, wall)
 
+
+def _advance_with_checkpoints(
+    sim: Simulation, checkpoint: Path, wall_before: float, progress: bool | None
+) -> float:
+    """Step ``sim`` to its configured strain, checkpointing every ``checkpoint_every``; return wall time.
+
+    The progress bar appears after the first chunk of steps, so that its clock (and its estimate of the
+    time left) does not include compiling the kernels.
+    """
+    config = sim.config
     start = time.perf_counter()
     show = sys.stderr.isatty() if progress is None else progress
     bar = None
-    if show:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=round(config.strain, 6),
-            initial=round(sim.state.strain, 6),
-            unit="strain",
-            desc=f"phi={config.volume_fraction} N={config.n_particles}",
-            file=sys.stderr,
-            bar_format="{l_bar}{bar}| {n:.2f}/{total:.2f} strain [{elapsed}<{remaining}]",
-        )
     next_checkpoint = (
         math.floor(sim.state.strain / config.checkpoint_every + 1e-9) + 1
     ) * config.checkpoint_every
 
     def on_chunk(s: Simulation) -> None:
-        nonlocal next_checkpoint
-        if bar is not None:
+        nonlocal next_checkpoint, bar
+        if show and bar is None:
+            bar = _progress_bar(config, min(s.state.strain, config.strain))
+        elif bar is not None:
             bar.n = round(min(s.state.strain, config.strain), 6)
             bar.refresh()
         if s.state.strain >= next_checkpoint - 1e-9:
@@ -89,7 +229,12 @@ def run_simulation(
     finally:
         if bar is not None:
             bar.close()
-    wall = wall_before + time.perf_counter() - start
+    return wall_before + time.perf_counter() - start
+
+
+def _write_results(sim: Simulation, out: Path, checkpoint: Path, wall: float) -> dict[str, Any]:
+    """Write the checkpoint, final state, time series, ``result.json`` and plot; return the result."""
+    config = sim.config
     io.save_checkpoint(checkpoint, config, sim.state, sim.records, wall)
     io.save_final_state(out / "final_state.npz", config, sim.state)
     io.write_timeseries(out / "timeseries.csv", sim.records)
@@ -107,6 +252,12 @@ def run_simulation(
         "n_particles": config.n_particles,
         "volume_fraction": config.volume_fraction,
         "mason_number": config.mason_number,
+        "mechanism": config.mechanism,
+        "field_direction": list(config.field_direction),
+        "shear_rate": config.shear_rate,
+        "near_field": config.near_field if not config.pure_shear else "none",
+        "u_rms_dip": rheo.u_rms_dip,
+        "u_rms_shear": rheo.u_rms_shear,
         "seed": config.seed,
         "min_gap": float(records.min_gap.min()) if records.min_gap.size else math.nan,
         "wall_seconds": wall,
@@ -115,6 +266,8 @@ def run_simulation(
         "mean_solver_iterations": float(records.solver_iterations.mean()) if records.strain.size else 0.0,
         "max_solver_iterations": int(records.solver_iterations.max()) if records.strain.size else 0,
         "steps_with_overlap_removal": int((records.overlap_sweeps > 0).sum()),
+        "mean_time_step": float(records.time_step.mean()) if records.strain.size else math.nan,
+        "min_time_step": float(records.time_step.min()) if records.strain.size else math.nan,
         "contributions": {
             name: {"relative_viscosity": v[0], "n1": v[1], "n2": v[2]}
             for name, v in rheo.contributions.items()

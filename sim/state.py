@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -20,8 +21,13 @@ class SimulationState:
         previous_warm_start: (N, 6) float64 the one before; the PCG initial guess extrapolates the two.
         stored_solutions: how many of ``warm_start``, ``previous_warm_start`` are valid (0, 1 or 2).
         has_previous: False before the first step (which is then explicit Euler).
-        strain: accumulated strain (sets the Lees–Edwards offset).
+        strain: the run's clock: accumulated strain when sheared (it sets the Lees–Edwards offset),
+            time in units ``a/U0`` when quiescent.
         step: number of steps taken.
+        step_history: (2,) float64 sizes of the last two steps (0 before they exist), for variable-step
+            AB2 and the extrapolated PCG guess.
+        mason_number: the field in force now, ``Mn = eta gammadot/(eps E0^2)`` (``inf``: off).
+        field_direction: (3,) float64 unit vector of the field in force now.
     """
 
     positions: np.ndarray
@@ -32,10 +38,18 @@ class SimulationState:
     has_previous: bool
     strain: float
     step: int
+    step_history: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    mason_number: float = math.inf
+    field_direction: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
 
     @classmethod
-    def initial(cls, positions: np.ndarray) -> SimulationState:
-        """State at rest before the first step."""
+    def initial(
+        cls,
+        positions: np.ndarray,
+        mason_number: float = math.inf,
+        field_direction: tuple[float, float, float] = (0.0, 1.0, 0.0),
+    ) -> SimulationState:
+        """State at rest before the first step, with the initial field."""
         n = positions.shape[0]
         return cls(
             positions=np.ascontiguousarray(positions, dtype=np.float64).copy(),
@@ -46,6 +60,9 @@ class SimulationState:
             has_previous=False,
             strain=0.0,
             step=0,
+            step_history=np.zeros(2),
+            mason_number=float(mason_number),
+            field_direction=np.array(field_direction, dtype=np.float64),
         )
 
     def copy(self) -> SimulationState:
@@ -59,6 +76,9 @@ class SimulationState:
             self.has_previous,
             self.strain,
             self.step,
+            self.step_history.copy(),
+            self.mason_number,
+            self.field_direction.copy(),
         )
 
     def arrays(self) -> dict[str, Any]:
@@ -72,6 +92,9 @@ class SimulationState:
             "has_previous": np.array(self.has_previous),
             "strain": np.array(self.strain, dtype=np.float64),
             "step": np.array(self.step, dtype=np.int64),
+            "step_history": self.step_history,
+            "mason_number": np.array(self.mason_number, dtype=np.float64),
+            "field_direction": self.field_direction,
         }
 
     @classmethod
@@ -86,6 +109,9 @@ class SimulationState:
             has_previous=bool(data["has_previous"]),
             strain=float(data["strain"]),
             step=int(data["step"]),
+            step_history=np.array(data["step_history"], dtype=np.float64),
+            mason_number=float(data["mason_number"]),
+            field_direction=np.array(data["field_direction"], dtype=np.float64),
         )
 
     def save(self, path: str | Path) -> None:

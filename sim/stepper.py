@@ -1,18 +1,34 @@
-"""The compiled time step: neighbour list, assembly, solve, stress, AB2 move, wrap, overlap removal.
+"""The compiled time step: velocity terms, stress, adaptive AB2 move, wrap, overlap removal.
 
-One step at configuration ``x_n`` and accumulated strain ``gamma_n`` (paper §2.2–2.4):
+The particle velocity is a sum of terms (paper eq. 2.6, ``physics.md`` §5)::
 
-1. pairs closer than ``2 + xi_cut`` (Lees–Edwards minimum image, cell list);
-2. lubrication scalars; block-sparse ``R_FU`` (Stokes drag + pairs); repulsive forces ``F^p``;
-3. solve ``R_FU . V' = R_FE : E_inf + F^p`` (PCG, warm start);
-4. ``U = u_inf(x) + U'`` (``u_inf = gammadot y x_hat``), stress contributions at ``x_n``;
-5. AB2 move, Lees–Edwards wrap at ``gamma_{n+1}``, Melrose–Ball overlap removal.
+    U = u_inf + R_FU^-1 . (R_FE : E_inf + F^p) + U^d,        Omega^d = 0,
 
-Velocity contributions beyond shear (dipolophoresis, ``U^d``) are added to ``U`` in step 4 by
-:func:`extra_velocity`; their stress terms get their own slots in the contribution axis
-(:data:`sim.observables.stress.STRESS_CONTRIBUTIONS`).
+and each term has one compiled entry point that returns its velocity and writes its own slots of the
+stress-contribution axis (:data:`sim.observables.stress.STRESS_CONTRIBUTIONS`):
 
-Everything here is ``@njit``; :func:`advance` loops over many steps without returning to Python.
+* :func:`hydrodynamic_term`: shear flow and repulsion by the resistance formulation (pair list,
+  lubrication, ``R_FU`` solve by PCG with a warm start); slots ``solvent``, ``stokes_drag``,
+  ``lubrication``, ``repulsion``.
+* :func:`dipolophoresis_term`: the dipolophoretic velocity ``U^d`` of the mobility approach (periodic
+  far-field sums) and its stresses; slots ``icep_isolated``, ``icep_pair``, ``dep_virial``.
+
+A new physical term is one more such function called from :func:`evaluate`.
+
+Stepping (:func:`advance`): second-order Adams–Bashforth with a variable step (explicit Euler first),
+``x_{n+1} = x_n + dt_n [(1 + w/2) U_n - (w/2) U_{n-1}]`` with ``w = dt_n / dt_{n-1}``, where ``dt_n`` is
+the largest step that keeps the non-affine displacement ``dt_n max_p |U_p - u_inf(x_p)|`` below
+``params.max_displacement`` (paper §2.3: < 0.4% of the mean spacing), capped by ``max_time_step`` and by
+``max_step_growth * dt_{n-1}``, and floored at ``min_time_step``. The Lees–Edwards wrap follows, then
+Melrose–Ball overlap removal. Everything is ``@njit``; :func:`advance` loops over many steps without
+returning to Python.
+
+Time: the clock ``t`` is strain in sheared runs (``gammadot = 1``) and ``t U0 / a`` in quiescent runs;
+the accumulated strain, which sets the Lees–Edwards offset, is ``shear_rate * t``.
+
+References:
+    Mirfendereski, S. & Park, J. S. (2024) J. Fluid Mech., §2.1–2.4.
+    Hairer, E., Nørsett, S. P. & Wanner, G. (1993) Solving ODEs I, §III.5 (variable-step multistep).
 """
 
 from __future__ import annotations
@@ -22,119 +38,86 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.contacts.overlap import remove_overlaps
-from sim.contacts.repulsion import repulsive_forces
+from sim.dipolophoresis.ewald import dip_far_field
+from sim.dipolophoresis.near_field_blend import add_near_field_velocities
 from sim.geometry.box import lees_edwards_offset, wrap_positions
-from sim.geometry.neighbors import build_pair_list
-from sim.hydrodynamics.lubrication import assemble_resistance, pair_scalars, pair_stresslets, strain_forcing
+from sim.geometry.overlap import remove_overlaps
+from sim.hydrodynamics.lubrication import pair_stresslets, strain_forcing
 from sim.hydrodynamics.resistance_solver import solve_resistance
-from sim.hydrodynamics.stokes_drag import FORCE_DRAG, STRESSLET_DRAG, TORQUE_DRAG
-from sim.integrators import adams_bashforth_update, shift_crossed_velocities
-from sim.observables.stress import LUBRICATION, N_CONTRIBUTIONS, REPULSION, SOLVENT, STOKES_DRAG
-
-SHEAR_RATE = 1.0
-"""Simulation units: time is strain."""
+from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
+from sim.integrators import shift_crossed_velocities, variable_step_adams_bashforth
+from sim.observables.stress import (
+    DEP_VIRIAL,
+    ICEP_ISOLATED,
+    ICEP_PAIR,
+    LUBRICATION,
+    N_CONTRIBUTIONS,
+    REPULSION,
+    SOLVENT,
+    STOKES_DRAG,
+)
+from sim.pair_system import pair_system
 
 STATUS_OK = 0
 STATUS_SOLVER_FAILED = 1
 STATUS_OVERLAP_FAILED = 2
+STATUS_NON_FINITE = 3
 STATUS_MESSAGES = {
     STATUS_OK: "ok",
     STATUS_SOLVER_FAILED: "the resistance solve did not converge (matrix not SPD or iteration cap reached)",
     STATUS_OVERLAP_FAILED: "overlap removal did not converge within its sweep cap",
+    STATUS_NON_FINITE: "a velocity was not finite (NaN or inf)",
 }
+
+ISOLATED_ICEP_STRESSLET = 9.0 * math.pi
+"""``S0 = 9 pi eps a^3 E0^2 (ee - I/3)`` for an ideally polarisable sphere with a fully polarised thin
+double layer (``physics.md`` §4; the B2 squirming mode of the ICEO slip ``(9/4) U0 sin(th) cos(th)``)."""
 
 
 @njit(cache=True)
-def simple_shear_strain_rate() -> np.ndarray:
+def shear_strain_rate(shear_rate: float) -> np.ndarray:
     """``E_inf = (gammadot/2)(x y + y x)`` for ``u_inf = gammadot y x_hat``."""
     e = np.zeros((3, 3))
-    e[0, 1] = 0.5 * SHEAR_RATE
-    e[1, 0] = 0.5 * SHEAR_RATE
+    e[0, 1] = 0.5 * shear_rate
+    e[1, 0] = 0.5 * shear_rate
     return e
 
 
 @njit(cache=True)
-def extra_velocity(positions: np.ndarray) -> np.ndarray:
-    """Velocity contributions beyond shear and repulsion (hook for dipolophoresis ``U^d``; zero now)."""
-    return np.zeros((positions.shape[0], 3))
-
-
-@njit(cache=True)
-def pair_system(
-    positions: np.ndarray,
-    box_length: float,
-    strain: float,
-    xi_cut: float,
-    delta: float,
-    force_scale: float,
-    force_range: float,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Pair list, lubrication scalars, block-sparse ``R_FU`` and repulsive forces at one configuration.
-
-    Returns:
-        pairs (M, 2), unit vectors (M, 3), lubrication scalars (M, 22), gaps (M,), diagonal (N, 6, 6)
-        and pair (M, 6, 6) blocks of ``R_FU``, repulsive forces (N, 3) and their virial sum (3, 3).
-    """
-    n = positions.shape[0]
-    offset = lees_edwards_offset(strain, box_length)
-    pairs, separations = build_pair_list(positions, box_length, offset, 2.0 + xi_cut)
-    scalars, units, gaps = pair_scalars(pairs, separations, xi_cut, delta)
-    diag, off = assemble_resistance(n, pairs, units, scalars, FORCE_DRAG, TORQUE_DRAG)
-    forces, virial = repulsive_forces(n, pairs, units, gaps, force_scale, force_range)
-    return pairs, units, scalars, gaps, diag, off, forces, virial
-
-
-@njit(cache=True)
-def evaluate(
-    positions: np.ndarray,
-    box_length: float,
-    strain: float,
-    warm_start: np.ndarray,
-    xi_cut: float,
-    delta: float,
-    force_scale: float,
-    force_range: float,
-    tolerance: float,
-    max_iterations: int,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
-    """Velocities and stress contributions at one configuration.
+def hydrodynamic_term(
+    positions: np.ndarray, strain: float, warm_start: np.ndarray, params, stress: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """Shear flow and repulsion: ``U = u_inf + V'`` with ``R_FU . V' = R_FE : E_inf + F^p``.
 
     Args:
         positions: (N, 3) wrapped positions (units a).
-        box_length: L (units a).
-        strain: accumulated strain (sets the Lees–Edwards offset).
-        warm_start: (N, 6) initial guess for the disturbance velocity.
-        xi_cut, delta: lubrication cut-off gap and regularisation (units a).
-        force_scale, force_range: repulsion ``F0`` and ``sigma``.
-        tolerance, max_iterations: PCG stopping rule.
+        strain: accumulated strain (Lees–Edwards offset).
+        warm_start: (N, 6) initial guess for ``V' = [U - u_inf, Omega - omega_inf]``.
+        params: :class:`sim.step_parameters.StepParameters`.
+        stress: (N_CONTRIBUTIONS, 3, 3); the slots ``solvent``, ``stokes_drag``, ``lubrication``,
+            ``repulsion`` are overwritten (units eta gammadot, or eps E0^2 when quiescent).
 
     Returns:
-        velocity (N, 3) total translational velocity ``u_inf + U' + U^extra`` (units a gammadot),
-        disturbance (N, 6) ``[U - u_inf, Omega - omega_inf]``, stress (N_CONTRIBUTIONS, 3, 3) in units
-        eta gammadot, the minimum gap over listed pairs (inf if none), PCG iterations (-1 on failure).
+        velocity (N, 3) ``u_inf + V'`` (translational), disturbance ``V'`` (N, 6), the smallest gap
+        among listed pairs (inf if none), PCG iterations (-1 if the solve failed).
     """
     n = positions.shape[0]
-    pairs, units, scalars, gaps, diag, off, forces, virial = pair_system(
-        positions, box_length, strain, xi_cut, delta, force_scale, force_range
-    )
-    strain_rate = simple_shear_strain_rate()
+    pairs, units, scalars, gaps, diag, off, forces, virial = pair_system(positions, strain, params)
+    strain_rate = shear_strain_rate(params.shear_rate)
     rhs = strain_forcing(n, pairs, units, scalars, strain_rate)
     for p in range(n):
         for c in range(3):
             rhs[p, c] += forces[p, c]
     disturbance, iterations, _ = solve_resistance(
-        diag, off, pairs, rhs, warm_start, tolerance, max_iterations
+        diag, off, pairs, rhs, warm_start, params.solver_tolerance, params.solver_max_iterations
     )
-
-    velocity = extra_velocity(positions)
+    velocity = np.empty((n, 3))
     for p in range(n):
-        velocity[p, 0] += SHEAR_RATE * positions[p, 1]
         for c in range(3):
-            velocity[p, c] += disturbance[p, c]
+            velocity[p, c] = disturbance[p, c]
+        velocity[p, 0] += params.shear_rate * positions[p, 1]
 
-    volume = box_length**3
-    stress = np.zeros((N_CONTRIBUTIONS, 3, 3))
+    volume = params.box_length**3
     stresslets = pair_stresslets(n, pairs, units, scalars, disturbance, strain_rate)
     for a in range(3):
         for b in range(3):
@@ -149,7 +132,113 @@ def evaluate(
     for k in range(gaps.shape[0]):
         if gaps[k] < min_gap:
             min_gap = gaps[k]
-    return velocity, disturbance, stress, min_gap, iterations
+    return velocity, disturbance, min_gap, iterations
+
+
+@njit(cache=True)
+def dipolophoresis_term(
+    positions: np.ndarray, strain: float, params, field, stress: np.ndarray
+) -> np.ndarray:
+    """Dipolophoretic velocity ``U^d`` (mobility approach, paper eq. 2.3) and its stresses.
+
+    ``U^d_alpha = U0 sum_beta [M^ICEP + M^DEP](x_alpha - x_beta) : ee`` over all particles and their
+    periodic images (Ewald sums of the far-field kernels, ``physics.md`` §4), with the exact two-sphere
+    functions blended in for pairs closer than ``field.near_field_cutoff``
+    (:mod:`sim.dipolophoresis.near_field_blend`); the isolated-sphere ICEP
+    stresslet ``n S0``, the O(r^-3) pair corrections to it and the DEP force virial go to the slots
+    ``icep_isolated``, ``icep_pair``, ``dep_virial`` (all zero when the field is off).
+
+    Args:
+        positions: (N, 3) wrapped positions (units a).
+        strain: accumulated strain (Lees–Edwards offset of the lattice).
+        params: :class:`sim.step_parameters.StepParameters`.
+        field: :class:`sim.step_parameters.FieldParameters` (``strength`` = ``U0`` = ``eps E0^2``).
+        stress: (N_CONTRIBUTIONS, 3, 3); the three dipolophoresis slots are overwritten.
+
+    Returns:
+        (N, 3) ``U^d`` in simulation units.
+    """
+    n = positions.shape[0]
+    for k in (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL):
+        stress[k, :, :] = 0.0
+    if field.strength == 0.0:
+        return np.zeros((n, 3))
+    offset = lees_edwards_offset(strain, params.box_length)
+    e = field.direction
+    velocity, icep_pair, dep_virial = dip_far_field(
+        positions, params.box_length, offset, e, field.icep_weight, field.dep_weight, field.plan
+    )
+    if field.near_field_cutoff > 0.0:
+        add_near_field_velocities(
+            positions,
+            params.box_length,
+            offset,
+            e,
+            field.icep_weight,
+            field.dep_weight,
+            field.near_field_cutoff,
+            field.near_field_taper,
+            field.near_field_grid,
+            field.near_field_coefficients,
+            field.near_field_asymptotics,
+            velocity,
+        )
+    strength = field.strength
+    for p in range(n):
+        for c in range(3):
+            velocity[p, c] *= strength
+    density = n / params.box_length**3
+    for a in range(3):
+        for b in range(3):
+            q = e[a] * e[b] - (1.0 / 3.0 if a == b else 0.0)
+            stress[ICEP_ISOLATED, a, b] = field.icep_weight * density * ISOLATED_ICEP_STRESSLET * q * strength
+            stress[ICEP_PAIR, a, b] = icep_pair[a, b] * strength
+            stress[DEP_VIRIAL, a, b] = dep_virial[a, b] * strength
+    return velocity
+
+
+@njit(cache=True)
+def evaluate(
+    positions: np.ndarray, strain: float, warm_start: np.ndarray, params, field
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, float, int]:
+    """Velocities and stress contributions at one configuration (the sum of all velocity terms).
+
+    Returns:
+        velocity (N, 3) total translational velocity ``u_inf + V' + U^d``, disturbance ``V'`` (N, 6)
+        of the resistance solve, ``U^d`` (N, 3), stress (N_CONTRIBUTIONS, 3, 3), the smallest listed
+        gap, PCG iterations (-1 on failure).
+    """
+    stress = np.zeros((N_CONTRIBUTIONS, 3, 3))
+    velocity, disturbance, min_gap, iterations = hydrodynamic_term(
+        positions, strain, warm_start, params, stress
+    )
+    dip_velocity = dipolophoresis_term(positions, strain, params, field, stress)
+    for p in range(velocity.shape[0]):
+        for c in range(3):
+            velocity[p, c] += dip_velocity[p, c]
+    return velocity, disturbance, dip_velocity, stress, min_gap, iterations
+
+
+@njit(cache=True)
+def choose_time_step(non_affine_max: float, previous_dt: float, has_previous: bool, params) -> float:
+    """Largest step with ``dt max|U - u_inf| <= max_displacement``, within the caps (module docstring)."""
+    dt = params.max_time_step
+    if non_affine_max * dt > params.max_displacement:
+        dt = params.max_displacement / non_affine_max
+    if has_previous and dt > params.max_step_growth * previous_dt:
+        dt = params.max_step_growth * previous_dt
+    if dt < params.min_time_step:
+        dt = params.min_time_step
+    return dt
+
+
+@njit(cache=True)
+def _rms_rows(v: np.ndarray, columns: int) -> float:
+    s = 0.0
+    for p in range(v.shape[0]):
+        for c in range(columns):
+            s += v[p, c] * v[p, c]
+    return math.sqrt(s / max(v.shape[0], 1))
 
 
 @njit(cache=True)
@@ -160,114 +249,114 @@ def advance(
     previous_warm_start: np.ndarray,
     stored_solutions: int,
     has_previous: bool,
-    strain: float,
-    n_steps: int,
-    dt: float,
-    box_length: float,
-    xi_cut: float,
-    delta: float,
-    force_scale: float,
-    force_range: float,
-    tolerance: float,
-    max_iterations: int,
-    overlap_min_gap: float,
-    overlap_max_sweeps: int,
-) -> tuple[float, bool, int, int, int, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Advance ``n_steps`` AB2 steps in place.
+    time: float,
+    step_history: np.ndarray,
+    max_steps: int,
+    end_time: float,
+    params,
+    field,
+) -> tuple:
+    """Take steps in place until the clock reaches ``end_time`` or ``max_steps`` steps are done.
 
-    ``positions``, ``previous_velocity`` (N, 3), ``warm_start`` and ``previous_warm_start`` (N, 6, the last
-    two disturbance solutions, of which ``stored_solutions`` are valid) are updated in place and with
-    ``strain`` and ``has_previous`` form the complete dynamical state: the same state gives the same
-    trajectory bit for bit, however the steps are split between calls. The PCG initial guess is the
-    linear extrapolation ``2 V'_n - V'_{n-1}`` of the last two solutions (about 40% fewer iterations
-    than reusing ``V'_n`` alone at phi = 0.45).
+    ``positions``, ``previous_velocity`` (N, 3), ``warm_start``, ``previous_warm_start`` (N, 6, the last
+    two disturbance solutions, of which ``stored_solutions`` are valid) and ``step_history`` (2,: the
+    last two step sizes) are updated in place; with ``time`` and ``has_previous`` they form the complete
+    dynamical state: the same state gives the same trajectory bit for bit, however the steps are split
+    between calls. The loop stops at the first step that brings the clock to ``end_time`` or beyond
+    (no step is shortened to land on it, so stopping and continuing never changes the trajectory). The
+    PCG initial guess extrapolates the last two solutions linearly in time.
 
     Returns:
-        strain, has_previous, stored_solutions, steps completed, status (``STATUS_*``), and per step
-        (valid up to the number completed): strain at the start of the step (n,), stress
-        (n, N_CONTRIBUTIONS, 3, 3) at the start of the step, minimum gap (n,), PCG iterations (n,),
-        overlap-removal sweeps (n,).
+        time, has_previous, stored_solutions, steps completed, status (``STATUS_*``), and per step
+        (valid up to the number completed): time at the start of the step (n,), step size (n,), stress
+        (n, N_CONTRIBUTIONS, 3, 3) at the start of the step, smallest gap (n,), PCG iterations (n,),
+        overlap-removal sweeps (n,), RMS of ``U^d`` (n,), RMS of the translational ``V'`` (n,).
     """
-    strain_series = np.zeros(n_steps)
-    stress_series = np.zeros((n_steps, N_CONTRIBUTIONS, 3, 3))
-    gap_series = np.zeros(n_steps)
-    iteration_series = np.zeros(n_steps, dtype=np.int64)
-    sweep_series = np.zeros(n_steps, dtype=np.int64)
+    time_series = np.zeros(max_steps)
+    dt_series = np.zeros(max_steps)
+    stress_series = np.zeros((max_steps, N_CONTRIBUTIONS, 3, 3))
+    gap_series = np.zeros(max_steps)
+    iteration_series = np.zeros(max_steps, dtype=np.int64)
+    sweep_series = np.zeros(max_steps, dtype=np.int64)
+    rms_dip_series = np.zeros(max_steps)
+    rms_shear_series = np.zeros(max_steps)
+    n = positions.shape[0]
     guess = np.empty_like(warm_start)
-    for step in range(n_steps):
-        if stored_solutions >= 2:
-            for p in range(guess.shape[0]):
+    status = STATUS_OK
+    done = 0
+    stop_time = end_time - 1e-9 * params.max_time_step
+    while done < max_steps and time < stop_time:
+        if stored_solutions >= 2 and step_history[1] > 0.0:
+            ratio = step_history[0] / step_history[1]
+            for p in range(n):
                 for c in range(6):
-                    guess[p, c] = 2.0 * warm_start[p, c] - previous_warm_start[p, c]
+                    guess[p, c] = warm_start[p, c] + ratio * (warm_start[p, c] - previous_warm_start[p, c])
         else:
             guess[:, :] = warm_start
-        velocity, disturbance, stress, min_gap, iterations = evaluate(
-            positions,
-            box_length,
-            strain,
-            guess,
-            xi_cut,
-            delta,
-            force_scale,
-            force_range,
-            tolerance,
-            max_iterations,
+        strain = params.shear_rate * time
+        velocity, disturbance, dip_velocity, stress, min_gap, iterations = evaluate(
+            positions, strain, guess, params, field
         )
         if iterations < 0:
-            return (
-                strain,
-                has_previous,
-                stored_solutions,
-                step,
-                STATUS_SOLVER_FAILED,
-                strain_series,
-                stress_series,
-                gap_series,
-                iteration_series,
-                sweep_series,
-            )
-        strain_series[step] = strain
-        stress_series[step] = stress
-        gap_series[step] = min_gap
-        iteration_series[step] = iterations
+            status = STATUS_SOLVER_FAILED
+            break
+        non_affine_max = 0.0
+        for p in range(n):
+            s = 0.0
+            for c in range(3):
+                u = disturbance[p, c] + dip_velocity[p, c]
+                s += u * u
+            if s > non_affine_max:
+                non_affine_max = s
+        non_affine_max = math.sqrt(non_affine_max)
+        if not math.isfinite(non_affine_max):
+            status = STATUS_NON_FINITE
+            break
+        dt = choose_time_step(non_affine_max, step_history[0], has_previous, params)
+
+        time_series[done] = time
+        dt_series[done] = dt
+        stress_series[done] = stress
+        gap_series[done] = min_gap
+        iteration_series[done] = iterations
+        rms_dip_series[done] = _rms_rows(dip_velocity, 3)
+        rms_shear_series[done] = _rms_rows(disturbance, 3)
         previous_warm_start[:, :] = warm_start
         warm_start[:, :] = disturbance
         stored_solutions = min(stored_solutions + 1, 2)
 
-        adams_bashforth_update(positions, velocity, previous_velocity, has_previous, dt)
-        strain += dt
-        offset = lees_edwards_offset(strain, box_length)
-        crossings = wrap_positions(positions, box_length, offset)
-        shift_crossed_velocities(velocity, crossings, box_length, SHEAR_RATE)
-        sweeps, crossings = remove_overlaps(
-            positions, box_length, offset, overlap_min_gap, overlap_max_sweeps
+        variable_step_adams_bashforth(
+            positions, velocity, previous_velocity, has_previous, dt, step_history[0]
         )
-        shift_crossed_velocities(velocity, crossings, box_length, SHEAR_RATE)
+        step_history[1] = step_history[0]
+        step_history[0] = dt
+        time += dt
+        offset = lees_edwards_offset(params.shear_rate * time, params.box_length)
+        crossings = wrap_positions(positions, params.box_length, offset)
+        shift_crossed_velocities(velocity, crossings, params.box_length, params.shear_rate)
+        sweeps, crossings = remove_overlaps(
+            positions, params.box_length, offset, params.overlap_min_gap, params.overlap_max_sweeps
+        )
+        shift_crossed_velocities(velocity, crossings, params.box_length, params.shear_rate)
         previous_velocity[:, :] = velocity
         has_previous = True
-        sweep_series[step] = sweeps
+        sweep_series[done] = sweeps
+        done += 1
         if sweeps < 0:
-            return (
-                strain,
-                has_previous,
-                stored_solutions,
-                step + 1,
-                STATUS_OVERLAP_FAILED,
-                strain_series,
-                stress_series,
-                gap_series,
-                iteration_series,
-                sweep_series,
-            )
+            status = STATUS_OVERLAP_FAILED
+            break
     return (
-        strain,
+        time,
         has_previous,
         stored_solutions,
-        n_steps,
-        STATUS_OK,
-        strain_series,
+        done,
+        status,
+        time_series,
+        dt_series,
         stress_series,
         gap_series,
         iteration_series,
         sweep_series,
+        rms_dip_series,
+        rms_shear_series,
     )

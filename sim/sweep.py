@@ -16,10 +16,17 @@ from sim.io import read_json, versions
 
 
 def run_name(config: SimulationConfig) -> str:
-    """Directory name of a run: ``phi0.450_N200_Mninf_seed1``."""
-    return (
-        f"phi{config.volume_fraction:.3f}_N{config.n_particles}_Mn{config.mason_number:g}_seed{config.seed}"
-    )
+    """Directory name of a run: ``phi0.450_N200_Mninf_seed1``; a mechanism other than ``dip``, a
+    quiescent run and a field direction other than y are added (``..._Mn1_dep_quiescent_e1,0,0_seed1``)."""
+    parts = [f"phi{config.volume_fraction:.3f}", f"N{config.n_particles}", f"Mn{config.mason_number:g}"]
+    if config.mechanism != "dip":
+        parts.append(config.mechanism)
+    if config.quiescent:
+        parts.append("quiescent")
+    if tuple(config.field_direction) != (0.0, 1.0, 0.0):
+        parts.append("e" + ",".join(f"{c:.3g}" for c in config.field_direction))
+    parts.append(f"seed{config.seed}")
+    return "_".join(parts)
 
 
 def run_one(args: tuple[dict[str, Any], str]) -> dict[str, Any]:

@@ -18,6 +18,18 @@ def test_digest_changes_with_any_source_file(tmp_path: Path) -> None:
     assert source_digest(tmp_path) != before
 
 
+def test_digest_changes_with_a_data_table(tmp_path: Path) -> None:
+    """Kernels bake tables in as constants (sim/dipolophoresis/near_field.py): a table edit must select a
+    fresh cache too."""
+    (tmp_path / "pkg" / "tables").mkdir(parents=True)
+    (tmp_path / "pkg" / "m.py").write_text("x = 1\n")
+    table = tmp_path / "pkg" / "tables" / "t.txt"
+    table.write_text("1 2\n")
+    before = source_digest(tmp_path)
+    table.write_text("1 3\n")
+    assert source_digest(tmp_path) != before
+
+
 def test_package_uses_a_source_keyed_cache() -> None:
     import os
 

@@ -1,4 +1,4 @@
-"""Tests of the Melrose–Ball overlap removal (sim/contacts/overlap.py).
+"""Tests of the Melrose–Ball overlap removal (sim/geometry/overlap.py).
 
 Independent checks: gaps from the O(N^2) pair search, hand-built pairs (including one across the
 sheared boundary) whose result follows from geometry, and momentum-like conservation of the pair
@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.contacts.overlap import OVERSHOOT, remove_overlaps, remove_overlaps_checked
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
 from sim.geometry.neighbors import build_pair_list_brute_force
+from sim.geometry.overlap import OVERSHOOT, remove_overlaps, remove_overlaps_checked
 
 
 def _min_gap(positions: np.ndarray, box: LeesEdwardsBox) -> float:

@@ -8,7 +8,7 @@ Park 2024 §2.3). The minimiser is FIRE (Bitzek et al. 2006) on the harmonic ene
 (2003); it finds an overlap-free state at every volume fraction below the jamming point
 ``phi_J ~ 0.64``, and ``phi <= 0.6`` with ``min_gap = 0.01`` corresponds to an effective volume
 fraction of at most ``~0.62``. A final Melrose–Ball sweep
-(:func:`~sim.contacts.overlap.remove_overlaps`) guarantees ``r - 2 >= min_gap`` for every pair.
+(:func:`~sim.geometry.overlap.remove_overlaps`) guarantees ``r - 2 >= min_gap`` for every pair.
 
 The packings are random, isotropic and deterministic for a given seed, but they are quenched, not
 equilibrium hard-sphere states: they carry an excess of near contacts (gaps just above
@@ -30,14 +30,17 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.contacts.overlap import remove_overlaps
 from sim.geometry.box import pair_separation, wrap_positions
 from sim.geometry.neighbors import build_pair_list
+from sim.geometry.overlap import remove_overlaps
 
-__all__ = ["MAX_VOLUME_FRACTION", "box_length_for", "random_packing"]
+__all__ = ["MAX_VOLUME_FRACTION", "MIN_VOLUME_FRACTION", "box_length_for", "random_packing"]
 
 #: Largest volume fraction :func:`random_packing` accepts.
 MAX_VOLUME_FRACTION = 0.6
+#: Smallest volume fraction a run accepts (below it the box, and the cell grid of the pair list, grow
+#: without bound: phi = 1e-9 with N = 200 would need a 10^5 a box).
+MIN_VOLUME_FRACTION = 1.0e-3
 
 # Diameter inflation (units of a) of the soft spheres above 2 + min_gap; FIRE stops when every
 # overlap at the inflated diameter is below half of it, so all gaps then exceed min_gap.

@@ -25,10 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.config import SimulationConfig
-from sim.contacts.repulsion import repulsion_scale
 from sim.hydrodynamics.lubrication import pair_stresslets
 from sim.hydrodynamics.resistance_solver import solve_resistance
-from sim.stepper import pair_system
+from sim.pair_system import pair_system
+from sim.step_parameters import step_parameters
 
 
 @dataclass(frozen=True)
@@ -69,13 +69,7 @@ def interparticle_stress(
         raise ValueError(f"positions must have shape ({config.n_particles}, 3), got {positions.shape}")
     length = config.box_length
     pairs, units, scalars, _, diag, off, forces, virial = pair_system(
-        positions,
-        length,
-        strain,
-        config.lubrication_cutoff,
-        config.lubrication_regularisation,
-        repulsion_scale(config.repulsion_shear_rate_ratio),
-        config.repulsion_range,
+        positions, strain, step_parameters(config)
     )
     rhs = np.zeros((n, 6))
     rhs[:, :3] = forces

@@ -3,18 +3,23 @@
 The bulk stress of a suspension (Batchelor 1970; paper eqs 2.8–2.9), in units ``eta gammadot``::
 
     <Sigma> = -p_f I + 2 eta E_inf + <Sigma^p>,
-    <Sigma^p> = -n <R_SU . (U - u_inf; Omega - omega_inf)> + n <R_SE : E_inf> - n <x F^p>
+    <Sigma^p> = -n <R_SU . (U - u_inf; Omega - omega_inf)> + n <R_SE : E_inf> + n <S^d> - n <x F^p>
 
 where the velocity in the first term is the shear-and-repulsion disturbance velocity solved from
-``R_FU``. It is reported per contribution (the isotropic ``-p_f I`` is not computed; it cancels in
-``N1`` and ``N2``):
+``R_FU`` (the dipolophoretic velocity ``U^d`` is not in it: its stress is ``S^d``). It is reported per
+contribution (the isotropic ``-p_f I`` is not computed; it cancels in ``N1`` and ``N2``):
 
-============== ==================================================================================
-``solvent``    ``2 eta E_inf``
-``stokes_drag`` isolated-sphere stresslets ``n (20/3) pi eta a^3 E_inf`` (gives 2.5 phi)
-``lubrication`` pair stresslets ``-R_SU^lub . V' + R_SE^lub : E_inf`` summed over particles / V
-``repulsion``   virial of the repulsive forces ``-(1/V) sum_pairs |F| r d d``
-============== ==================================================================================
+================== ================================================================================
+``solvent``        ``2 eta E_inf``
+``stokes_drag``    isolated-sphere stresslets ``n (20/3) pi eta a^3 E_inf`` (gives 2.5 phi)
+``lubrication``    pair stresslets ``-R_SU^lub . V' + R_SE^lub : E_inf`` summed over particles / V
+``repulsion``      virial of the repulsive forces ``-(1/V) sum_pairs |F| r d d``
+``icep_isolated``  ICEP stresslet of isolated spheres ``n S0``, ``S0 = 9 pi eps a^3 E0^2 (ee - I/3)``
+``icep_pair``      O(r^-3) pair corrections to the ICEP stresslets (Ewald lattice sum)
+``dep_virial``     virial of the dielectrophoretic forces ``-n <x F^DEP>`` (Ewald lattice sum)
+================== ================================================================================
+
+The three dipolophoresis terms are ``physics.md`` §4; they scale as ``eps E0^2 = eta gammadot / Mn``.
 
 Rheology (paper §2.4): ``eta_r = Sigma_xy / (eta gammadot)``, ``N1 = Sigma_xx - Sigma_yy``,
 ``N2 = Sigma_yy - Sigma_zz``.
@@ -31,13 +36,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STRESS_CONTRIBUTIONS: tuple[str, ...] = ("solvent", "stokes_drag", "lubrication", "repulsion")
+STRESS_CONTRIBUTIONS: tuple[str, ...] = (
+    "solvent",
+    "stokes_drag",
+    "lubrication",
+    "repulsion",
+    "icep_isolated",
+    "icep_pair",
+    "dep_virial",
+)
 """Names of the stress contributions, in the order of the contribution axis of stress arrays."""
 
 SOLVENT = 0
 STOKES_DRAG = 1
 LUBRICATION = 2
 REPULSION = 3
+ICEP_ISOLATED = 4
+ICEP_PAIR = 5
+DEP_VIRIAL = 6
+SHEAR_CONTRIBUTIONS = (SOLVENT, STOKES_DRAG, LUBRICATION, REPULSION)
+DIPOLOPHORESIS_CONTRIBUTIONS = (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL)
 N_CONTRIBUTIONS = len(STRESS_CONTRIBUTIONS)
 
 
@@ -63,20 +81,30 @@ class BlockAverage:
     n_blocks: int
 
 
-def block_average(series: np.ndarray, n_blocks: int = 10) -> BlockAverage:
+def block_average(series: np.ndarray, n_blocks: int = 10, weights: np.ndarray | None = None) -> BlockAverage:
     """Mean and standard error of a correlated time series from ``n_blocks`` contiguous blocks.
 
-    The series is cut into ``n_blocks`` equal blocks (a remainder at the start is dropped); the error is
-    ``std(block means, ddof=1) / sqrt(n_blocks)``, valid when blocks are longer than the correlation
-    time (Flyvbjerg & Petersen 1989). With fewer samples than blocks the error is NaN, never zero.
+    The series is cut into ``n_blocks`` blocks of equal sample count (a remainder at the start is
+    dropped); the error is ``std(block means, ddof=1) / sqrt(n_blocks)``, valid when blocks are longer
+    than the correlation time (Flyvbjerg & Petersen 1989). With ``weights`` (the time step each sample
+    stands for, when the step adapts) every mean is a time average ``sum w x / sum w``; equal weights
+    give the unweighted result. With fewer samples than blocks the error is NaN, never zero.
     """
     x = np.asarray(series, dtype=float)
+    w = np.ones_like(x) if weights is None else np.asarray(weights, dtype=float)
+    if w.shape != x.shape:
+        raise ValueError(f"weights must have the shape of series {x.shape}, got {w.shape}")
     if n_blocks < 2:
         raise ValueError(f"n_blocks must be >= 2, got {n_blocks}")
     if x.size == 0:
         return BlockAverage(float("nan"), float("nan"), 0)
     if x.size < n_blocks:
-        return BlockAverage(float(x.mean()), float("nan"), 0)
+        return BlockAverage(float(np.sum(w * x) / np.sum(w)), float("nan"), 0)
     size = x.size // n_blocks
-    blocks = x[x.size - size * n_blocks :].reshape(n_blocks, size).mean(axis=1)
-    return BlockAverage(float(blocks.mean()), float(blocks.std(ddof=1) / np.sqrt(n_blocks)), n_blocks)
+    start = x.size - size * n_blocks
+    xb = x[start:].reshape(n_blocks, size)
+    wb = w[start:].reshape(n_blocks, size)
+    block_weight = wb.sum(axis=1)
+    blocks = (xb * wb).sum(axis=1) / block_weight
+    mean = float(np.sum(blocks * block_weight) / np.sum(block_weight))
+    return BlockAverage(mean, float(blocks.std(ddof=1) / np.sqrt(n_blocks)), n_blocks)

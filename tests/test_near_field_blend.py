@@ -1,0 +1,81 @@
+"""The exact near field blended into the periodic far field (sim/dipolophoresis/near_field_blend.py)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sim import SimulationConfig
+from sim.dipolophoresis.far_field import MECHANISM_WEIGHTS, far_field_functions
+from sim.dipolophoresis.near_field import pair_functions
+from sim.dipolophoresis.near_field_blend import blend_weight
+from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters
+from sim.stepper import evaluate
+
+FAR_CODES = {"dip": 0, "icep": 1, "dep": 2}
+
+
+def _dip_velocity(config: SimulationConfig, positions: np.ndarray, e: np.ndarray) -> np.ndarray:
+    params = step_parameters(config)
+    field = field_parameters(config, config.mason_number, e, run_ewald_plan(config))
+    n = positions.shape[0]
+    _, _, dip, _, _, _ = evaluate(np.ascontiguousarray(positions), 0.0, np.zeros((n, 6)), params, field)
+    return dip
+
+
+def _pair(r: float, angle_deg: float, length: float) -> tuple[np.ndarray, np.ndarray]:
+    th = math.radians(angle_deg)
+    xh = np.array([math.sin(th) * math.cos(0.3), math.cos(th), math.sin(th) * math.sin(0.3)])
+    centre = np.full(3, length / 2)
+    return np.array([centre + 0.5 * r * xh, centre - 0.5 * r * xh]), xh  # alpha = 0, x = x0 - x1 = r xh
+
+
+def test_blend_weight_is_c1() -> None:
+    """w = 1 below r_c - width, 0 above r_c; value and slope continuous at both ends (1e-6 steps)."""
+    r_cut, width = 4.0, 0.5
+    assert blend_weight(3.4, r_cut, width) == 1.0 and blend_weight(4.0, r_cut, width) == 0.0
+    for edge in (r_cut - width, r_cut):
+        h = 1e-6
+        left, mid, right = (blend_weight(edge + k * h, r_cut, width) for k in (-1, 0, 1))
+        assert abs(right - left) < 1e-5
+        assert abs((right - mid) - (mid - left)) < 1e-9  # slope continuous (second difference ~ h^2)
+
+
+@pytest.mark.parametrize("mechanism", ["dip", "icep", "dep"])
+@pytest.mark.parametrize("r,angle", [(2.01, 20.0), (2.3, 60.0), (3.2, 85.0)])
+def test_correction_equals_exact_minus_far_field(mechanism: str, r: float, angle: float) -> None:
+    """Inside r_c - width the exact-minus-none difference of U^d is exactly the isolated pair's
+    (exact - far field) velocity from the public pair functions (1e-12, rounding): the periodic images
+    cancel in the difference; U_beta = -U_alpha for the correction."""
+    base = dict(n_particles=2, volume_fraction=0.002, mason_number=1.0, shear_rate=0, mechanism=mechanism)
+    exact_cfg = SimulationConfig(**base, near_field="exact")
+    none_cfg = SimulationConfig(**base, near_field="none")
+    e = np.array([0.0, 1.0, 0.0])
+    positions, xh = _pair(r, angle, exact_cfg.box_length)
+    du = _dip_velocity(exact_cfg, positions, e) - _dip_velocity(none_cfg, positions, e)
+    exact = np.array(pair_functions(r, mechanism))
+    far = np.array(far_field_functions(r, FAR_CODES[mechanism]))
+    d_par, d_perp, d_x = exact - far
+    c = float(e @ xh)
+    expected = (d_par * c * c + d_perp * (1 - c * c)) * xh + 2 * d_x * c * (e - c * xh)
+    np.testing.assert_allclose(du[0], expected, rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(du[1], -expected, rtol=1e-10, atol=1e-13)
+    assert MECHANISM_WEIGHTS[mechanism]  # names agree between the modules
+
+
+def test_no_jump_at_the_cutoff() -> None:
+    """A pair just inside and just outside r_c: U^d differs by O(dr) only (no step), 1e-7 for dr = 2e-9."""
+    config = SimulationConfig(n_particles=2, volume_fraction=0.002, mason_number=1.0, shear_rate=0)
+    e = np.array([0.0, 1.0, 0.0])
+    r_cut = config.near_field_cutoff
+    inside, _ = _pair(r_cut - 1e-9, 40.0, config.box_length)
+    outside, _ = _pair(r_cut + 1e-9, 40.0, config.box_length)
+    assert np.abs(_dip_velocity(config, inside, e) - _dip_velocity(config, outside, e)).max() < 1e-7
+
+
+def test_small_box_with_exact_near_field_is_refused() -> None:
+    with pytest.raises(ValueError, match="near_field_cutoff"):
+        SimulationConfig(n_particles=20, volume_fraction=0.45, mason_number=1.0)
+    SimulationConfig(n_particles=20, volume_fraction=0.45, mason_number=1.0, near_field="none")
