@@ -1,7 +1,13 @@
-"""Pure-shear step cost against system size: one command, one table.
+"""Step cost against system size, pure shear and with the field: one command, two tables.
 
-    python benchmarks/run.py [--phi 0.45] [--sizes 100,250,500,1000,2000] [--steps 500] [--warmup-strain 3]
-    python benchmarks/run.py --quick   # N = 64, 250, 500; shorter warm-up and timing: under a minute
+    python benchmarks/run.py [--phi 0.45] [--sizes 64,250,500,1000,2000,4000] [--steps 500]
+                             [--warmup-strain 3] [--mason inf,1,0.1] [--near-field exact|none|both]
+    python benchmarks/run.py --quick   # N = 64, 250, 500; Mn = inf, 1; shorter warm-up and timing
+
+Rows with a finite Mason number add the dipolophoretic velocity (Ewald far field, exact near field
+unless ``--near-field none``); for them the table gives the two velocity terms of the step timed whole
+(``hydrodynamic_term``: lubrication solve + stress; ``dipolophoresis_term``: Ewald/SPME sums, near-field
+blend, DIP stresses), the steps per strain of the adaptive step and the seconds per strain.
 
 For each N a fresh process builds a random packing, shears it for ``--warmup-strain`` (JIT compilation
 happens here and is excluded), then times ``--steps`` full compiled steps (``sim.stepper.advance``) and,
@@ -37,7 +43,9 @@ def _rss_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
+def measure(
+    n: int, phi: float, steps: int, warmup_strain: float, mason: float = math.inf, near_field: str = "exact"
+) -> dict:
     import numpy as np
 
     from sim import Simulation, SimulationConfig
@@ -52,13 +60,22 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
     )
     from sim.hydrodynamics.resistance_solver import solve_resistance
     from sim.hydrodynamics.stokes_drag import FORCE_DRAG, TORQUE_DRAG
-    from sim.stepper import shear_strain_rate
+    from sim.observables.stress import N_CONTRIBUTIONS
+    from sim.step_parameters import field_parameters
+    from sim.stepper import dipolophoresis_term, hydrodynamic_term, shear_strain_rate
 
     # JIT warm-up on a tiny system, then the memory baseline
     Simulation(SimulationConfig(n_particles=30, volume_fraction=0.3, strain=0.01)).advance(3)
     baseline = _rss_mib()
 
-    config = SimulationConfig(n_particles=n, volume_fraction=phi, strain=warmup_strain + 1.0, seed=1)
+    config = SimulationConfig(
+        n_particles=n,
+        volume_fraction=phi,
+        strain=warmup_strain + 1.0,
+        seed=1,
+        mason_number=mason,
+        near_field=near_field,
+    )
     sim = Simulation(config)
     t0 = time.perf_counter()
     sim.advance_to(warmup_strain)
@@ -99,6 +116,22 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
         pair_stresslets(n, pairs, units, sc, sol, e)
         timings["stress"] += time.perf_counter() - t
     out = {k: 1e3 * v / reps for k, v in timings.items()}
+    # the two velocity terms of the step, timed whole on the final configuration
+    stress = np.zeros((N_CONTRIBUTIONS, 3, 3))
+    field = field_parameters(config, s.mason_number, s.field_direction, sim._plan)
+    hydro_guess = s.warm_start + (s.warm_start - s.previous_warm_start)
+    term_seconds = {"shear_term": 0.0, "dip_term": 0.0}
+    for rep in range(reps + 1):
+        t = time.perf_counter()
+        hydrodynamic_term(s.positions, s.strain, hydro_guess, sim._params, stress)
+        t1 = time.perf_counter()
+        if not math.isinf(mason):
+            dipolophoresis_term(s.positions, s.strain, sim._params, field, stress)
+        t2 = time.perf_counter()
+        if rep > 0:
+            term_seconds["shear_term"] += t1 - t
+            term_seconds["dip_term"] += t2 - t1
+    out.update({k: 1e3 * v / reps for k, v in term_seconds.items()})
     step_arrays = [pairs, seps, sc, units, gaps, diag, off, rhs, forces, sol]
     working = (
         sum(a.nbytes for a in step_arrays)
@@ -112,6 +145,12 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
     return {
         "n": n,
         "phi": phi,
+        "mason": "inf" if math.isinf(mason) else mason,
+        "near_field": near_field,
+        "ms_shear_term": out["shear_term"],
+        "ms_dip_term": out["dip_term"],
+        "mean_dt": float(chunk.time_step.mean()),
+        "seconds_per_strain": total / float(chunk.time_step.mean()),
         "pairs": int(pairs.shape[0]),
         "ms_step": 1e3 * total,
         "ms_neighbours": out["neighbours"],
@@ -127,17 +166,18 @@ def measure(n: int, phi: float, steps: int, warmup_strain: float) -> dict:
 
 
 class Plan(NamedTuple):
-    """Default sizes, timed steps and warm-up strain of a benchmark run."""
+    """Default sizes, timed steps, warm-up strain and Mason numbers of a benchmark run."""
 
     sizes: str
     steps: int
     warmup_strain: float
+    masons: str
 
 
-DEFAULTS = Plan(sizes="100,250,500,1000,2000", steps=500, warmup_strain=3.0)
+DEFAULTS = Plan(sizes="64,250,500,1000,2000,4000", steps=500, warmup_strain=3.0, masons="inf,1,0.1")
 """The measurement of the README table."""
 
-QUICK = Plan(sizes="64,250,500", steps=300, warmup_strain=2.0)
+QUICK = Plan(sizes="64,250,500", steps=300, warmup_strain=2.0, masons="inf,1")
 """``--quick``: the same measurement, smaller (about 20 s with compiled kernels, a minute more without);
 2 strains of warm-up reach the plateau of the PCG iterations, but fewer timed steps make it noisier."""
 
@@ -151,6 +191,19 @@ def _sizes(text: str) -> list[int]:
     if not sizes or any(n < 2 for n in sizes):
         raise argparse.ArgumentTypeError(f"must be comma-separated integers >= 2, e.g. 100,250; got {text!r}")
     return sizes
+
+
+def _masons(text: str) -> list[float]:
+    """``--mason``: comma-separated numbers > 0 or ``inf``."""
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        values = []
+    if not values or any(not v > 0 for v in values):
+        raise argparse.ArgumentTypeError(
+            f"must be comma-separated numbers > 0 or inf, e.g. inf,1; got {text!r}"
+        )
+    return values
 
 
 def _positive_int(text: str) -> int:
@@ -192,8 +245,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--steps",
         type=_positive_int,
         default=None,
-        help=f"timed steps per size, after the warm-up (default {DEFAULTS.steps}; "
-        f"--quick: {QUICK.steps})",
+        help=f"timed steps per size, after the warm-up (default {DEFAULTS.steps}; --quick: {QUICK.steps})",
     )
     parser.add_argument(
         "--warmup-strain",
@@ -208,7 +260,23 @@ def build_parser() -> argparse.ArgumentParser:
         help="smaller defaults for a check that finishes in under a minute once the kernels are compiled "
         "(explicit options still win); noisier than the README's table",
     )
+    parser.add_argument(
+        "--mason",
+        type=_masons,
+        default=None,
+        help=f"comma-separated Mason numbers ('inf' = pure shear) (default {DEFAULTS.masons}; "
+        f"--quick: {QUICK.masons})",
+    )
+    parser.add_argument(
+        "--near-field",
+        choices=("exact", "none", "both"),
+        default="exact",
+        help="near-field dipolophoresis of the field rows: exact, none (far field only), or both "
+        "(default exact)",
+    )
     parser.add_argument("--child", type=int, default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--child-mason", type=float, default=math.inf, help=argparse.SUPPRESS)
+    parser.add_argument("--child-near-field", default="exact", help=argparse.SUPPRESS)
     return parser
 
 
@@ -221,17 +289,19 @@ def _resolve(args: argparse.Namespace) -> None:
         args.steps = base.steps
     if args.warmup_strain is None:
         args.warmup_strain = base.warmup_strain
+    if args.mason is None:
+        args.mason = _masons(base.masons)
 
 
-def scaling_exponent(rows: list[dict]) -> tuple[int, int, float] | None:
+def scaling_exponent(rows: list[dict], start: int = 250) -> tuple[int, int, float] | None:
     """``(N_first, N_last, p)`` with cost per step ~ N^p between two rows, or None without two sizes.
 
-    The fit starts at N = 250 when that row exists and is not the last (smaller systems are dominated
-    by per-step overheads), else at the first row, and ends at the last row.
+    The fit starts at N = ``start`` when that row exists and is not the last (smaller systems are
+    dominated by per-step overheads), else at the first row, and ends at the last row.
     """
     if len(rows) < 2:
         return None
-    candidates = [r for r in rows[:-1] if r["n"] == 250]
+    candidates = [r for r in rows[:-1] if r["n"] == start]
     first = candidates[0] if candidates else rows[0]
     last = rows[-1]
     if first["n"] == last["n"] or first["ms_step"] <= 0.0 or last["ms_step"] <= 0.0:
@@ -240,31 +310,54 @@ def scaling_exponent(rows: list[dict]) -> tuple[int, int, float] | None:
     return first["n"], last["n"], slope
 
 
+def _run_child(n: int, mason: float, near_field: str, args: argparse.Namespace) -> dict:
+    cmd = [
+        sys.executable,
+        __file__,
+        "--child",
+        str(n),
+        "--child-mason",
+        str(mason),
+        "--child-near-field",
+        near_field,
+        "--phi",
+        str(args.phi),
+        "--steps",
+        str(args.steps),
+        "--warmup-strain",
+        str(args.warmup_strain),
+    ]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
+    if proc.returncode != 0:
+        sys.exit(f"N = {n}, Mn = {mason} failed (exit status {proc.returncode}):\n{proc.stderr}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
 def main() -> None:
     args = build_parser().parse_args()
     _resolve(args)
     if args.child is not None:
-        print(json.dumps(measure(args.child, args.phi, args.steps, args.warmup_strain)))
+        result = measure(
+            args.child, args.phi, args.steps, args.warmup_strain, args.child_mason, args.child_near_field
+        )
+        print(json.dumps(result))
         return
-    rows = []
-    for n in args.sizes:
-        cmd = [
-            sys.executable,
-            __file__,
-            "--child",
-            str(n),
-            "--phi",
-            str(args.phi),
-            "--steps",
-            str(args.steps),
-            "--warmup-strain",
-            str(args.warmup_strain),
-        ]
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        if proc.returncode != 0:
-            sys.exit(f"N = {n} failed (exit status {proc.returncode}):\n{proc.stderr}")
-        rows.append(json.loads(proc.stdout.strip().splitlines()[-1]))
-        print(f"  N = {n} done", file=sys.stderr, flush=True)
+    near_fields = ["exact", "none"] if args.near_field == "both" else [args.near_field]
+    rows: list[dict] = []
+    field_rows: list[dict] = []
+    for mason in args.mason:
+        for near_field in near_fields if not math.isinf(mason) else ["none"]:
+            for n in args.sizes:
+                row = _run_child(n, mason, near_field, args)
+                (rows if math.isinf(mason) else field_rows).append(row)
+                print(f"  N = {n}, Mn = {mason:g}, near field {near_field} done", file=sys.stderr, flush=True)
+    if rows:
+        _print_shear_table(rows, args)
+    if field_rows:
+        _print_field_table(field_rows, args)
+
+
+def _print_shear_table(rows: list[dict], args: argparse.Namespace) -> None:
     print(
         f"\nPure shear, phi = {args.phi}, one core, after {args.warmup_strain} strain of warm-up "
         f"(ms per step; phases timed separately on the same configuration)\n"
@@ -285,6 +378,34 @@ def main() -> None:
     fit = scaling_exponent(rows)
     if fit is not None:
         print(f"\ncost per step grows as N^{fit[2]:.2f} from N = {fit[0]} to N = {fit[1]}")
+
+
+def _print_field_table(rows: list[dict], args: argparse.Namespace) -> None:
+    print(
+        f"\nWith the field (dipolophoresis along y), phi = {args.phi}, one core, after {args.warmup_strain} "
+        "strain of warm-up; the shear and DIP terms are timed whole on the final configuration\n"
+    )
+    print(
+        "| N | Mn | near field | ms/step | shear term ms | DIP term ms | PCG iters | steps/strain "
+        "| s/strain | particle-steps/s |"
+    )
+    print("|" + "---|" * 10)
+    for r in rows:
+        print(
+            f"| {r['n']} | {r['mason']:g} | {r['near_field']} | {r['ms_step']:.2f} "
+            f"| {r['ms_shear_term']:.2f} "
+            f"| {r['ms_dip_term']:.2f} | {r['iterations_mean']:.0f} | {1.0 / r['mean_dt']:.0f} "
+            f"| {r['seconds_per_strain']:.2f} | {r['particle_steps_per_s']:,.0f} |"
+        )
+    for mason in sorted({r["mason"] for r in rows}):
+        for near_field in sorted({r["near_field"] for r in rows}):
+            subset = [r for r in rows if r["mason"] == mason and r["near_field"] == near_field]
+            fit = scaling_exponent(subset, start=500)
+            if fit is not None:
+                print(
+                    f"Mn = {mason:g}, near field {near_field}: cost per step grows as N^{fit[2]:.2f} "
+                    f"from N = {fit[0]} to N = {fit[1]}"
+                )
 
 
 if __name__ == "__main__":

@@ -15,14 +15,14 @@ and stores the ICEP pair correction ``dS = S_alpha - 9 (ee - I/3)`` as ``f1..f4`
 as ``g2..g4`` (``g1 = 0``) and the DEP force on alpha as ``(F_par, F_perp, F_x)`` (module docstring of
 ``stresslet.py`` for the decomposition; units ``pi eps a^3 E0^2`` and ``pi eps a^2 E0^2``), at truncation
 ``L = 14 + c/sqrt(r - 2)`` with ``c = 10`` and again with ``c = 8`` (error estimate: the largest difference
-of each group of functions; conservative, the error falls ~20x from ``c = 8`` to ``c = 10``).
+of each group of functions; conservative: against ``c = 14`` the ``c = 10`` values are ~30x closer).
 
 Resumable: every finished node is appended (one JSON line) to a work file (default
 ``runs/near_field_stress_table/work.jsonl``, git-ignored); rerun the same command to continue, or use
 ``--chunk N`` for N nodes per call. Nodes run from large to small ``r`` (cheap first). One BLAS thread.
-The default table (486 nodes) took about 12 minutes on one core of the development machine (2 shared
-cores), the four exact check points below the table (gaps 1e-4..3e-4, L up to 1014; skip with
-``--no-contact-check``) about 4 more.
+The default table (486 nodes, both orders) took 5.8 minutes on one core of the development machine (2
+shared cores), the four exact check points below the table (gaps 1e-4..3e-4, L up to 1014; skip with
+``--no-contact-check``) 2.4 more.
 
 Usage:
     python scripts/generate_near_field_stress_table.py                 # (resume and) write the table
@@ -160,6 +160,8 @@ def format_table(records: list[dict], contact: list[dict], settings: dict, comma
         f" (L = {int(orders.min())}..{int(orders.max())});",
         f"# error_* = max |F(c = {c_value:g}) - F(c = {c_check:g})| over the f, the g and the force"
         " functions;",
+        "# Conservative: against c = 14 the c = 10 values differ by 1.7e-6 (ICEP, r = 2.0005), 3.3e-7",
+        "# (2.005), 2.2e-8 (2.02); DEP stresslet <= 1.7e-8, force <= 3e-10 (~30x below error_*).",
         "# symmetry_error = max |S_alpha - S_beta| (exactly zero for equal spheres).",
         "# Estimated error at selected r (nearest node), and the values next to the far-field forms:",
     ]

@@ -27,9 +27,20 @@ from sim.config import MECHANISMS, SimulationConfig
 from sim.contacts.repulsion import repulsion_scale
 from sim.dipolophoresis.ewald import EwaldPlan, ewald_plan
 from sim.dipolophoresis.near_field import NEAR_FIELD_ASYMPTOTICS, NEAR_FIELD_COEFFICIENTS, NEAR_FIELD_GRID
+from sim.dipolophoresis.near_field_stress import STRESS_ASYMPTOTICS, STRESS_COEFFICIENTS, STRESS_GRID
 
 OVERLAP_MAX_SWEEPS = 10_000
 """Sweeps after which overlap removal gives up and the step fails (in practice 1-20 are needed)."""
+
+NEAR_FIELD_TABLES = (
+    NEAR_FIELD_GRID,
+    NEAR_FIELD_COEFFICIENTS,
+    NEAR_FIELD_ASYMPTOTICS,
+    STRESS_GRID,
+    STRESS_COEFFICIENTS,
+    STRESS_ASYMPTOTICS,
+)
+"""The exact two-sphere tables the compiled step reads (velocities, then stresses)."""
 
 MIN_STEP_FRACTION = 1.0e-4
 """The adaptive step never falls below this fraction of ``time_step``; steps taken at the floor are
@@ -89,8 +100,9 @@ class FieldParameters(NamedTuple):
         plan: Ewald/SPME splitting and cut-offs of the periodic far-field sums.
         near_field_cutoff: ``r_c`` of the exact near-field blend (units a); 0 means far field only.
         near_field_taper: width of the blend's taper below ``r_c`` (units a).
-        near_field_grid, near_field_coefficients, near_field_asymptotics: the two-sphere table
-            (:mod:`sim.dipolophoresis.near_field`).
+        near_field_tables: the two-sphere tables ``(grid, coefficients, asymptotics)`` of
+            :mod:`sim.dipolophoresis.near_field` followed by those of
+            :mod:`sim.dipolophoresis.near_field_stress`.
     """
 
     strength: float
@@ -100,9 +112,7 @@ class FieldParameters(NamedTuple):
     plan: EwaldPlan
     near_field_cutoff: float
     near_field_taper: float
-    near_field_grid: np.ndarray
-    near_field_coefficients: np.ndarray
-    near_field_asymptotics: np.ndarray
+    near_field_tables: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 
 def step_parameters(config: SimulationConfig) -> StepParameters:
@@ -157,9 +167,7 @@ def field_parameters(
         plan=plan,
         near_field_cutoff=float(config.near_field_cutoff) if config.near_field == "exact" else 0.0,
         near_field_taper=float(config.near_field_taper),
-        near_field_grid=NEAR_FIELD_GRID,
-        near_field_coefficients=NEAR_FIELD_COEFFICIENTS,
-        near_field_asymptotics=NEAR_FIELD_ASYMPTOTICS,
+        near_field_tables=NEAR_FIELD_TABLES,
     )
 
 

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit
 
 from sim.dipolophoresis.ewald import dip_far_field
-from sim.dipolophoresis.near_field_blend import add_near_field_velocities
+from sim.dipolophoresis.near_field_blend import add_near_field_corrections
 from sim.geometry.box import lees_edwards_offset, wrap_positions
 from sim.geometry.overlap import remove_overlaps
 from sim.hydrodynamics.lubrication import pair_stresslets, strain_forcing
@@ -47,6 +47,7 @@ from sim.hydrodynamics.resistance_solver import solve_resistance
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
 from sim.integrators import shift_crossed_velocities, variable_step_adams_bashforth
 from sim.observables.stress import (
+    DEP_STRESSLET,
     DEP_VIRIAL,
     ICEP_ISOLATED,
     ICEP_PAIR,
@@ -159,7 +160,7 @@ def dipolophoresis_term(
         (N, 3) ``U^d`` in simulation units.
     """
     n = positions.shape[0]
-    for k in (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL):
+    for k in (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL, DEP_STRESSLET):
         stress[k, :, :] = 0.0
     if field.strength == 0.0:
         return np.zeros((n, 3))
@@ -168,8 +169,9 @@ def dipolophoresis_term(
     velocity, icep_pair, dep_virial = dip_far_field(
         positions, params.box_length, offset, e, field.icep_weight, field.dep_weight, field.plan
     )
+    dep_stresslet = np.zeros((3, 3))
     if field.near_field_cutoff > 0.0:
-        add_near_field_velocities(
+        add_near_field_corrections(
             positions,
             params.box_length,
             offset,
@@ -178,10 +180,11 @@ def dipolophoresis_term(
             field.dep_weight,
             field.near_field_cutoff,
             field.near_field_taper,
-            field.near_field_grid,
-            field.near_field_coefficients,
-            field.near_field_asymptotics,
+            field.near_field_tables,
             velocity,
+            icep_pair,
+            dep_virial,
+            dep_stresslet,
         )
     strength = field.strength
     for p in range(n):
@@ -194,6 +197,7 @@ def dipolophoresis_term(
             stress[ICEP_ISOLATED, a, b] = field.icep_weight * density * ISOLATED_ICEP_STRESSLET * q * strength
             stress[ICEP_PAIR, a, b] = icep_pair[a, b] * strength
             stress[DEP_VIRIAL, a, b] = dep_virial[a, b] * strength
+            stress[DEP_STRESSLET, a, b] = dep_stresslet[a, b] * strength
     return velocity
 
 

@@ -79,3 +79,54 @@ def test_small_box_with_exact_near_field_is_refused() -> None:
     with pytest.raises(ValueError, match="near_field_cutoff"):
         SimulationConfig(n_particles=20, volume_fraction=0.45, mason_number=1.0)
     SimulationConfig(n_particles=20, volume_fraction=0.45, mason_number=1.0, near_field="none")
+
+
+def _basis(f: tuple[float, float, float, float], e: np.ndarray, xh: np.ndarray) -> np.ndarray:
+    """f1 (ee - I/3) + f2 [c (e xh + xh e) - 2/3 c^2 I] + (f3 + f4 c^2)(xh xh - I/3)."""
+    c = float(e @ xh)
+    eye = np.eye(3)
+    return (
+        f[0] * (np.outer(e, e) - eye / 3)
+        + f[1] * (c * (np.outer(e, xh) + np.outer(xh, e)) - 2 / 3 * c * c * eye)
+        + (f[2] + f[3] * c * c) * (np.outer(xh, xh) - eye / 3)
+    )
+
+
+@pytest.mark.parametrize("r,angle", [(2.02, 25.0), (2.7, 70.0)])
+def test_stress_correction_equals_exact_minus_far_field(r: float, angle: float) -> None:
+    """Isolated pair, field on (Mn = 1, quiescent units eps E0^2): the exact-minus-none difference of each
+    DIP stress slot equals, from the public table functions and physics.md's far-field forms,
+    icep_pair: 2 pi (dS^exact - dS^far) / V; dep_virial: -pi sym(x (F^exact - F^far)) / V;
+    dep_stresslet: 2 pi S^DEP / V (1e-10 relative: rounding)."""
+    from sim.dipolophoresis.near_field_stress import dep_force_functions, pair_stress_functions
+    from sim.observables.stress import STRESS_CONTRIBUTIONS
+    from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters
+
+    base = dict(n_particles=2, volume_fraction=0.002, mason_number=1.0, shear_rate=0)
+    e = np.array([0.0, 1.0, 0.0])
+    stresses = {}
+    for near_field in ("exact", "none"):
+        config = SimulationConfig(**base, near_field=near_field)
+        positions, xh = _pair(r, angle, config.box_length)
+        field = field_parameters(config, 1.0, e, run_ewald_plan(config))
+        _, _, _, stress, _, _ = evaluate(positions, 0.0, np.zeros((2, 6)), step_parameters(config), field)
+        stresses[near_field] = stress
+    volume = config.box_length**3
+    diff = stresses["exact"] - stresses["none"]
+    icep_far = (9.0, -36.0, -22.5, 112.5)
+    d_icep = _basis(pair_stress_functions(r, "icep"), e, xh) - _basis(
+        tuple(f / r**3 for f in icep_far), e, xh
+    )
+    s_dep = _basis(pair_stress_functions(r, "dep"), e, xh)
+    c = float(e @ xh)
+    f_par, f_perp, f_x = dep_force_functions(r)
+    force = (f_par * c * c + f_perp * (1 - c * c)) * xh + 2 * f_x * c * (e - c * xh)
+    force_far = -3.0 * ((5 * c * c - 1) * xh - 2 * c * e) / r**4
+    x = r * xh
+    d_virial = -0.5 * (np.outer(x, force - force_far) + np.outer(force - force_far, x))
+    index = {name: STRESS_CONTRIBUTIONS.index(name) for name in ("icep_pair", "dep_virial", "dep_stresslet")}
+    scale = math.pi / volume
+    np.testing.assert_allclose(diff[index["icep_pair"]], 2 * scale * d_icep, rtol=1e-10, atol=1e-16)
+    np.testing.assert_allclose(diff[index["dep_virial"]], scale * d_virial, rtol=1e-10, atol=1e-16)
+    np.testing.assert_allclose(diff[index["dep_stresslet"]], 2 * scale * s_dep, rtol=1e-10, atol=1e-16)
+    assert np.abs(diff[index["icep_pair"]]).max() > 1e-6  # the correction is not trivially zero

@@ -58,9 +58,11 @@ def far_field(r: float) -> np.ndarray:
 
 def test_table_grid_and_provenance() -> None:
     """Same nodes as near_field.txt (bit for bit); header states method, truncation, accuracy, provenance.
-    Documented accuracy: estimated truncation error < 1e-4 (ICEP, where f2, f4 ~ 6..17), < 2e-6 (DEP
-    stresslet), < 1e-7 (force) everywhere, and < 2e-6 / 1e-7 / 1e-8 for gaps >= 0.005; S_alpha = S_beta to
-    1e-12."""
+
+    Stored error estimates |F(c = 10) - F(c = 8)| (conservative: against c = 14 the c = 10 values are ~30x
+    closer, 1.7e-6 for ICEP f4 ~ -16.6 at r = 2.0005): < 1e-4 (ICEP), 1e-6 (DEP stresslet), 1e-7 (force)
+    everywhere; < 2e-5 / 5e-7 / 1e-8 for gaps >= 0.005; S_alpha = S_beta to 1e-11.
+    """
     np.testing.assert_array_equal(STRESS_TABLE.r, VELOCITY_TABLE.r)
     assert R_STRESS_TABLE_MIN == pytest.approx(2.0005, abs=1e-12) and R_STRESS_TABLE_MAX == 10.0
     text = "\n".join(STRESS_TABLE.header)
@@ -75,11 +77,11 @@ def test_table_grid_and_provenance() -> None:
     ):
         assert required in text, required
     assert STRESS_TABLE.error_icep.max() < 1e-4
-    assert STRESS_TABLE.error_dep.max() < 2e-6 and STRESS_TABLE.error_force.max() < 1e-7
+    assert STRESS_TABLE.error_dep.max() < 1e-6 and STRESS_TABLE.error_force.max() < 1e-7
     wide = STRESS_TABLE.r >= 2.005
-    assert STRESS_TABLE.error_icep[wide].max() < 2e-6
-    assert STRESS_TABLE.error_dep[wide].max() < 1e-7 and STRESS_TABLE.error_force[wide].max() < 1e-8
-    assert STRESS_TABLE.symmetry_error.max() < 1e-12
+    assert STRESS_TABLE.error_icep[wide].max() < 2e-5
+    assert STRESS_TABLE.error_dep[wide].max() < 5e-7 and STRESS_TABLE.error_force[wide].max() < 1e-8
+    assert STRESS_TABLE.symmetry_error.max() < 1e-11
 
 
 def test_loader_reproduces_table_nodes() -> None:
@@ -107,14 +109,17 @@ def test_own_spline_matches_scipy_not_a_knot() -> None:
 
 def test_spline_interpolation_error_estimate() -> None:
     """Re-spline every second node; error at the skipped nodes / 16 (cubic: h^4) estimates the full spline's
-    error: < 2e-8 relative to each function's scale (measured values in the loader docstring)."""
+    error: < 5e-9 absolute (measured 3e-9, ICEP f4 near contact) and < 5e-7 relative to the local value
+    (measured 2.5e-7, at the last interior nodes where the coarse not-a-knot end condition dominates)."""
     s = np.log(STRESS_TABLE.r - 2.0)
     for k in range(10):
         coarse = CubicSpline(s[::2], STRESS_TABLE.values[k, ::2], bc_type="not-a-knot")
         skipped = slice(1, s.shape[0] - 1, 2)
         error = np.abs(coarse(s[skipped]) - STRESS_TABLE.values[k, skipped]) / 16.0
-        scale = np.abs(STRESS_TABLE.values[k, skipped])
-        assert np.all(error < 2e-8 * np.maximum(scale, 1e-3 * np.abs(STRESS_TABLE.values[k]).max())), k
+        scale = np.maximum(
+            np.abs(STRESS_TABLE.values[k, skipped]), 1e-3 * np.abs(STRESS_TABLE.values[k]).max()
+        )
+        assert error.max() < 5e-9 and (error / scale).max() < 5e-7, k
 
 
 def test_near_contact_forms_continuous_and_finite() -> None:
@@ -148,11 +153,12 @@ def test_near_contact_forms_against_exact_points_in_header() -> None:
 
 
 def test_far_field_beyond_table_and_jump() -> None:
-    """r > 10: exactly the far-field forms; jump at r = 10 < 5e-3 (ICEP, 3 % of the r^-3 term), 1e-6 (DEP)."""
+    """r > 10: exactly the far-field forms. Jump at r = 10 (the exact O(r^-5) residual): < 5e-3 for ICEP
+    (3 % of the r^-3 term), < 2e-7 for the DEP stresslet, < 2e-6 for the force (0.2 % of -6/r^4)."""
     for r in (R_STRESS_TABLE_MAX * (1 + 1e-9), 12.0, 100.0):
         np.testing.assert_allclose(all_ten(r), far_field(r), rtol=1e-14, atol=0)
     jump = np.abs(all_ten(R_STRESS_TABLE_MAX) - far_field(R_STRESS_TABLE_MAX))
-    assert jump[:4].max() < 5e-3 and jump[4:].max() < 1e-6
+    assert jump[:4].max() < 5e-3 and jump[4:7].max() < 2e-7 and jump[7:].max() < 2e-6
     np.testing.assert_allclose(jump[:4] / np.abs(far_field(10.0)[:4]), 0.03, atol=0.015)
 
 

@@ -1,17 +1,19 @@
-"""Slow validation of sheared dipolophoresis with far-field pair interactions (marked ``slow``).
+"""Slow validation of sheared dipolophoresis (marked ``slow``): far field only, and exact near field.
 
-Run with ``python -m pytest -m slow tests/test_validation_dip_slow.py`` (about 15 minutes on 2 cores).
-Settings: N = 100, strain 20 (averages over strain 5-20, 10 blocks), seed 1, field along y, mechanism
-``dip``, adaptive step (displacement bound 0.4% of the spacing, dt <= 2e-3), far-field Ewald sums at
-relative accuracy 1e-6, no near-field correction (the exact near field is a later issue). The table goes
-to ``runs/validation_dip/table.md`` (reproduced in the README).
+Run with ``python -m pytest -m slow tests/test_validation_dip_slow.py`` (about an hour on 2 cores; the
+two grids can be run alone with ``-k none`` or ``-k exact``). Settings: N = 100, strain 20 (averages over
+strain 5-20, 10 blocks), seed 1, field along y, mechanism ``dip``, adaptive step (displacement bound 0.4%
+of the spacing, dt <= 2e-3), far-field Ewald sums at relative accuracy 1e-6; ``near_field = "none"``
+(far-field kernels only, issue 10) or ``"exact"`` (two-sphere functions blended in below r = 4 a). The
+tables go to ``runs/validation_dip/<near field>/table.md`` (reproduced in the README).
 
-What is asserted are the trends that follow from the model itself and from the paper (physics.md §8)
-without depending on the near field: Mn = 10 within 15% of the pure-shear viscosity (the paper's
-``Mn >= 5`` collapse); ``U_rms^DIP / U_rms^shear`` falling monotonically with Mn and crossing 1 between
-Mn = 0.1 and 10 (paper Fig. 7: at 0.7-1). The paper's other trends (low-Mn viscosity drop, thickening
-across Mn = 1, normal-stress signs) are reported in the table and discussed in the README, not asserted:
-with far-field kernels only they are a measurement, not a check.
+What is asserted follows from the model itself, whatever the near field: the DIP stress contributions
+scale as ``1/Mn`` at fixed structure, so their sum at Mn = 0.1 is dominated by the isolated-sphere term
+``n S0 = (27/4) phi (ee - I/3) / Mn`` (N1 part ``-(27/4) phi / Mn``, within 25%: the pair terms measured
+here are <= 10% of it); ``U_rms^DIP / U_rms^shear`` falls monotonically with Mn. The paper's trends
+(Mn >= 5 collapse onto pure shear, the low-Mn viscosity drop, thickening across Mn = 1, the crossing of
+the velocity ratio at Mn = 0.7-1, normal-stress signs) are reported in the table and compared in the
+README, not asserted: which of them the model reproduces is the result.
 """
 
 from __future__ import annotations
@@ -24,19 +26,34 @@ import pytest
 from sim.config import SimulationConfig
 from sim.sweep import run_sweep
 
-VOLUME_FRACTIONS = (0.30, 0.45)
+VOLUME_FRACTIONS = {"none": (0.30, 0.45), "exact": (0.15, 0.30, 0.45)}
 MASON_NUMBERS = (0.1, 1.0, 10.0, math.inf)
 OUT = Path(__file__).resolve().parents[1] / "runs" / "validation_dip"
 SHEAR_PARTS = ("solvent", "stokes_drag", "lubrication", "repulsion")
-DIP_PARTS = ("icep_isolated", "icep_pair", "dep_virial")
+DIP_PARTS = ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
 
 
 def _part(result: dict, names: tuple[str, ...], key: str) -> float:
     return sum(result["contributions"][name][key] for name in names)
 
 
+def _row(config: SimulationConfig, r: dict) -> str:
+    ratio = r["u_rms_dip"] / r["u_rms_shear"]
+    return (
+        f"| {config.volume_fraction:.2f} | {config.mason_number:g} "
+        f"| {r['relative_viscosity']:.2f} ± {r['relative_viscosity_stderr']:.2f} "
+        f"| {r['n1']:.2f} ± {r['n1_stderr']:.2f} | {r['n2']:.2f} ± {r['n2_stderr']:.2f} "
+        f"| {_part(r, SHEAR_PARTS, 'relative_viscosity'):.2f} "
+        f"/ {_part(r, DIP_PARTS, 'relative_viscosity'):.2f} "
+        f"| {_part(r, SHEAR_PARTS, 'n1'):.2f} / {_part(r, DIP_PARTS, 'n1'):.2f} "
+        f"| {_part(r, SHEAR_PARTS, 'n2'):.2f} / {_part(r, DIP_PARTS, 'n2'):.2f} "
+        f"| {ratio:.3g} | {r['steps'] / r['strain']:.0f} | {r['wall_seconds'] / r['strain']:.1f} |"
+    )
+
+
 @pytest.mark.slow
-def test_sheared_dipolophoresis_far_field() -> None:
+@pytest.mark.parametrize("near_field", ["none", "exact"])
+def test_sheared_dipolophoresis(near_field: str) -> None:
     configs = [
         SimulationConfig(
             n_particles=100,
@@ -45,39 +62,31 @@ def test_sheared_dipolophoresis_far_field() -> None:
             strain=20.0,
             transient_strain=5.0,
             seed=1,
-            near_field="none",
+            near_field=near_field,
         )
-        for phi in VOLUME_FRACTIONS
+        for phi in VOLUME_FRACTIONS[near_field]
         for mn in MASON_NUMBERS
     ]
-    results = run_sweep(configs, OUT, processes=2)
+    out = OUT / near_field
+    results = run_sweep(configs, out, processes=2)
     lines = [
+        f"near field: {near_field}; N = 100, strain 20 (averaged 5-20), seed 1, e = y, mechanism dip",
+        "",
         "| phi | Mn | eta_r | N1 | N2 | eta_r shear / DIP parts | N1 shear / DIP | N2 shear / DIP "
-        "| U_rms^DIP / U_rms^shear | steps per strain |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| U_rms^DIP / U_rms^shear | steps per strain | wall s per strain |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     by_point = {}
     for config, r in zip(configs, results, strict=True):
         by_point[(config.volume_fraction, config.mason_number)] = r
-        ratio = r["u_rms_dip"] / r["u_rms_shear"]
-        lines.append(
-            f"| {config.volume_fraction:.2f} | {config.mason_number:g} "
-            f"| {r['relative_viscosity']:.2f} ± {r['relative_viscosity_stderr']:.2f} "
-            f"| {r['n1']:.2f} ± {r['n1_stderr']:.2f} | {r['n2']:.2f} ± {r['n2_stderr']:.2f} "
-            f"| {_part(r, SHEAR_PARTS, 'relative_viscosity'):.2f} "
-            f"/ {_part(r, DIP_PARTS, 'relative_viscosity'):.2f} "
-            f"| {_part(r, SHEAR_PARTS, 'n1'):.2f} / {_part(r, DIP_PARTS, 'n1'):.2f} "
-            f"| {_part(r, SHEAR_PARTS, 'n2'):.2f} / {_part(r, DIP_PARTS, 'n2'):.2f} "
-            f"| {ratio:.3g} | {r['steps'] / r['strain']:.0f} |"
-        )
-    OUT.mkdir(parents=True, exist_ok=True)
-    (OUT / "table.md").write_text("\n".join(lines) + "\n")
+        lines.append(_row(config, r))
+    (out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
-    for phi in VOLUME_FRACTIONS:
-        pure = by_point[(phi, math.inf)]["relative_viscosity"]
-        assert abs(by_point[(phi, 10.0)]["relative_viscosity"] / pure - 1) <= 0.15
+    for phi in VOLUME_FRACTIONS[near_field]:
+        low = by_point[(phi, 0.1)]
+        isolated_n1 = -27.0 / 4.0 * phi / 0.1
+        assert abs(_part(low, DIP_PARTS, "n1") / isolated_n1 - 1) <= 0.25, (phi, _part(low, DIP_PARTS, "n1"))
         ratios = [
             by_point[(phi, mn)]["u_rms_dip"] / by_point[(phi, mn)]["u_rms_shear"] for mn in MASON_NUMBERS
         ]
-        assert ratios[0] > ratios[1] > ratios[2] > ratios[3] == 0.0
-        assert ratios[0] > 1.0 > ratios[2]
+        assert ratios[0] > ratios[1] > ratios[2] > ratios[3] == 0.0, (phi, ratios)

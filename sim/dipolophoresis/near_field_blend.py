@@ -1,4 +1,4 @@
-"""Near-field correction of the dipolophoretic pair velocities, blended into the periodic far field.
+"""Near-field corrections of the dipolophoretic pair velocities and stresses, blended into the far field.
 
 The time step computes ``U^d`` from the far-field kernels summed over all periodic images (Ewald,
 :mod:`sim.dipolophoresis.ewald`). For a pair closer than ``r_c`` the far-field pair kernel is replaced by
@@ -20,6 +20,21 @@ Accuracy: what is left out is ``w(r) dF(r)`` for ``r > r_c - width`` plus ``dF``
 follows the paper (§2.1: corrections "typically for ``|R| < 4a``"); a larger ``r_c`` (up to ``L/2``)
 reduces the residual at the price of a longer pair list.
 
+Stresses (``physics.md`` §4; tables of :mod:`sim.dipolophoresis.near_field_stress`, same method): for
+each pair closer than ``r_c``, with the same weight ``w(r)``,
+
+* ICEP: both spheres' stresslets change by ``w (dS^exact - dS^far)``, ``dS^far`` the O(r^-3) pair
+  correction the Ewald sum already holds (slot ``icep_pair``);
+* DEP force virial: ``-w sym(x (F^exact_alpha - F^far_alpha)) / V`` (slot ``dep_virial``);
+* DEP-induced stresslets: ``w S^DEP`` on each sphere, the stresslet a sphere carries because the DEP
+  forces move the pair rigidly (``O(r^-6)`` far away, so it has no far-field part; slot
+  ``dep_stresslet``).
+
+What is exact: the two-sphere ICEP stresslets (electric problem, slip and Stokes flow of the isolated
+pair) and the two-sphere DEP force and its induced stresslets, tabulated to ~1e-6 (their table header).
+What is approximated: pairwise additivity (no three-body near-field terms), the blend taper, and for
+gaps below 5e-4 a the fitted near-contact forms (ICEP ``f2``, ``f4`` grow weakly, ``~gap^-0.2``).
+
 References:
     Saintillan, D. (2008) Phys. Fluids 20, 067104; Park, J. S. & Saintillan, D. (2010) J. Fluid Mech.
     662, 66-90; Mirfendereski, S. & Park, J. S. (2024) J. Fluid Mech., §2.1.
@@ -34,6 +49,7 @@ from numba import njit
 
 from sim.dipolophoresis.far_field import MECHANISM_DEP, MECHANISM_DIP, MECHANISM_ICEP, far_field_functions
 from sim.dipolophoresis.near_field import near_field_kernel
+from sim.dipolophoresis.near_field_stress import pair_stress_corrections
 from sim.geometry.neighbors import build_pair_list
 
 
@@ -95,7 +111,7 @@ def pair_correction(
 
 
 @njit(cache=True)
-def add_near_field_velocities(
+def add_near_field_corrections(
     positions: np.ndarray,
     box_length: float,
     offset: float,
@@ -104,12 +120,13 @@ def add_near_field_velocities(
     dep_weight: float,
     r_cut: float,
     width: float,
-    grid,
-    coefficients,
-    asymptotics,
+    tables,
     velocity: np.ndarray,
+    icep_stress: np.ndarray,
+    dep_virial: np.ndarray,
+    dep_stresslet: np.ndarray,
 ) -> int:
-    """Add the blended near-field correction (units U0) of every pair closer than ``r_cut`` to ``velocity``.
+    """Add the blended near-field corrections of every pair closer than ``r_cut`` (in place).
 
     Args:
         positions: (N, 3) wrapped positions (units a).
@@ -117,14 +134,19 @@ def add_near_field_velocities(
         e: (3,) unit field direction.
         icep_weight, dep_weight: the mechanism switch (each 0 or 1).
         r_cut, width: blend cut-off and taper width (units a).
-        grid, coefficients, asymptotics: the table arrays of :mod:`sim.dipolophoresis.near_field`.
-        velocity: (N, 3) updated in place.
+        tables: ``(grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics)``
+            of :mod:`sim.dipolophoresis.near_field` and :mod:`sim.dipolophoresis.near_field_stress`.
+        velocity: (N, 3) in units U0.
+        icep_stress, dep_virial, dep_stresslet: (3, 3) bulk stresses in units ``eps E0^2`` (``a = 1``).
 
     Returns:
         The number of pairs closer than ``r_cut``.
     """
+    grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = tables
     pairs, separations = build_pair_list(positions, box_length, offset, r_cut)
+    volume = box_length**3
     x = np.empty(3)
+    xh = np.empty(3)
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -134,4 +156,19 @@ def add_near_field_velocities(
         for c in range(3):
             velocity[i, c] += du[c]
             velocity[j, c] -= du[c]
+        r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        w = blend_weight(r, r_cut, width)
+        if w == 0.0:
+            continue
+        for c in range(3):
+            xh[c] = x[c] / r
+        d_icep, s_dep, d_force = pair_stress_corrections(
+            xh, e, r, stress_grid, stress_coefficients, stress_asymptotics
+        )
+        scale = math.pi * w / volume  # table units pi eps a^3 E0^2 (stresslets), pi eps a^2 E0^2 (forces)
+        for a in range(3):
+            for b in range(3):
+                icep_stress[a, b] += icep_weight * 2.0 * scale * d_icep[a, b]
+                dep_stresslet[a, b] += dep_weight * 2.0 * scale * s_dep[a, b]
+                dep_virial[a, b] -= dep_weight * 0.5 * scale * (x[a] * d_force[b] + x[b] * d_force[a])
     return pairs.shape[0]

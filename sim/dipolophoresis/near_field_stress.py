@@ -39,13 +39,20 @@ Regimes (as :mod:`sim.dipolophoresis.near_field`):
 
 * ``2.0005 <= r <= 10``: cubic not-a-knot splines in ``s = ln(r - 2)`` through
   ``tables/near_field_stress.txt`` (the nodes of ``near_field.txt``), written by
-  ``scripts/generate_near_field_stress_table.py``;
+  ``scripts/generate_near_field_stress_table.py``. Accuracy: truncation (``L = 14 + 10/sqrt(r - 2)``,
+  checked against ``c = 14``) <= 2e-6 for ICEP (at r = 2.0005, where f4 = -16.6), 3e-7 at r = 2.005,
+  2e-8 at 2.02, < 1e-13 beyond 2.5; DEP stresslet <= 2e-8, force <= 3e-10 (the table's stored
+  ``error_*`` columns, ``c = 10`` vs ``c = 8``, are ~30x larger: conservative); spline interpolation
+  < 5e-9 absolute (:data:`SPLINE_ERROR_NOTE`);
 * ``r > 10``: the far-field forms above (jump at ``r = 10``: see :data:`FAR_FIELD_JUMP_NOTE`);
 * gap ``xi = r - 2 < 5e-4``: ``F = C + A xi^p`` fitted exactly through the nodes at ``xi_0``, ``~1.19 xi_0``,
   ``~1.42 xi_0`` (:func:`~sim.dipolophoresis.two_sphere.stresslet.fit_shifted_power`), ``xi`` floored at
   :data:`~sim.dipolophoresis.near_field.GAP_FLOOR`. ``f2, f4`` (and ``f3``) diverge weakly (``p ~ -0.21,
   -0.16``) through the singular transverse field in the gap, like ICEP ``F_x``; the others tend to finite
-  contact values. Accuracy of the forms against exact solutions at ``xi = 1e-4 .. 3e-4``: table header.
+  contact values. Against exact solutions (L up to 1014, in the table header) the forms are off at
+  ``xi = 1e-4`` by 0.2 % (f2), 0.3 % (f3), 0.6 % (f4), 1e-5 relative (f1), <= 0.09 % (DEP ``g``), 0.01 %
+  (force), and at ``xi = 3e-4`` by 10x less. Below ``xi ~ 1e-4`` the divergent ``f2, f3, f4`` are
+  extrapolations (at the floor ``xi = 1e-6``: ``f2 = 29.7``, ``f4 = -59.2``; uncertain by tens of percent).
 * ``r < 2``: :class:`ValueError`.
 
 Two evaluators share the coefficient arrays: numpy (:func:`pair_stress_functions`,
@@ -81,6 +88,7 @@ FloatArray = NDArray[np.float64]
 
 __all__ = [
     "FAR_FIELD_JUMP_NOTE",
+    "SPLINE_ERROR_NOTE",
     "MECHANISMS",
     "R_STRESS_TABLE_MAX",
     "R_STRESS_TABLE_MIN",
@@ -103,7 +111,15 @@ N_FUNCTIONS: Final = len(STRESS_FUNCTION_NAMES)
 
 FAR_FIELD_JUMP_NOTE: Final = (
     "at r = 10 the exact functions differ from the far-field forms by 2.8e-4 (f1), 1.5e-3 (f2), 5.8e-4 (f3), "
-    "4.8e-3 (f4) [3 % of the O(r^-3) values, the r^-5 residual], < 1e-7 for the DEP functions"
+    "4.8e-3 (f4) [3 % of the O(r^-3) values: the r^-5 residual -(57/2)(1, -5, -5/2, 35/2)/r^5], 1.1e-7 for "
+    "the DEP stresslet (g4) and 1.2e-6 for the DEP force (F_par, 0.2 %)"
+)
+"""The discontinuity of the isolated-pair functions at the last node (the caller blends at ``r_c <= 10``)."""
+
+SPLINE_ERROR_NOTE: Final = (
+    "cubic not-a-knot spline in ln(r-2), 486 nodes, ds = 0.02; error estimated by re-splining every second "
+    "node and dividing by 16: < 3e-9 absolute (ICEP f4 near contact), < 2.5e-7 relative; fresh exact solves "
+    "between nodes agree to 1e-7 relative (tests/test_near_field_stress.py)"
 )
 
 

@@ -17,9 +17,10 @@ contribution (the isotropic ``-p_f I`` is not computed; it cancels in ``N1`` and
 ``icep_isolated``  ICEP stresslet of isolated spheres ``n S0``, ``S0 = 9 pi eps a^3 E0^2 (ee - I/3)``
 ``icep_pair``      O(r^-3) pair corrections to the ICEP stresslets (Ewald lattice sum)
 ``dep_virial``     virial of the dielectrophoretic forces ``-n <x F^DEP>`` (Ewald lattice sum)
+``dep_stresslet``  stresslets induced by the DEP forces through the two-sphere mobility (near field only)
 ================== ================================================================================
 
-The three dipolophoresis terms are ``physics.md`` §4; they scale as ``eps E0^2 = eta gammadot / Mn``.
+The four dipolophoresis terms are ``physics.md`` §4; they scale as ``eps E0^2 = eta gammadot / Mn``.
 
 Rheology (paper §2.4): ``eta_r = Sigma_xy / (eta gammadot)``, ``N1 = Sigma_xx - Sigma_yy``,
 ``N2 = Sigma_yy - Sigma_zz``.
@@ -44,6 +45,7 @@ STRESS_CONTRIBUTIONS: tuple[str, ...] = (
     "icep_isolated",
     "icep_pair",
     "dep_virial",
+    "dep_stresslet",
 )
 """Names of the stress contributions, in the order of the contribution axis of stress arrays."""
 
@@ -54,8 +56,9 @@ REPULSION = 3
 ICEP_ISOLATED = 4
 ICEP_PAIR = 5
 DEP_VIRIAL = 6
+DEP_STRESSLET = 7
 SHEAR_CONTRIBUTIONS = (SOLVENT, STOKES_DRAG, LUBRICATION, REPULSION)
-DIPOLOPHORESIS_CONTRIBUTIONS = (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL)
+DIPOLOPHORESIS_CONTRIBUTIONS = (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL, DEP_STRESSLET)
 N_CONTRIBUTIONS = len(STRESS_CONTRIBUTIONS)
 
 
