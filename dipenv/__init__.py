@@ -1,1 +1,56 @@
-"""Gymnasium environments for electric-field control of suspension rheology (not yet implemented)."""
+"""Gymnasium environments for electric-field control of a sheared dense suspension's viscosity.
+
+``import dipenv`` registers (Gymnasium 1.x has no plugin discovery; ``gym.make("dipenv:dipenv/...")``
+imports it too):
+
+* ``dipenv/FieldMagnitude-v0``: field strength, direction along y (N = 64, phi = 0.45, 0.25 strain per
+  action, 48 actions per episode);
+* ``dipenv/FieldVector-v0``: strength and direction;
+* ``dipenv/FieldMagnitudeTiny-v0``, ``dipenv/FieldVectorTiny-v0``: N = 32, 0.02 strain per action, 10
+  actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo.
+
+See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` for the full description.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from gymnasium.envs.registration import register, registry
+
+from dipenv.envs.field_control import DEFAULT_EPISODE_STEPS, FieldMagnitudeEnv, FieldVectorEnv
+
+__all__ = ["ENV_IDS", "TINY_KWARGS", "FieldMagnitudeEnv", "FieldVectorEnv"]
+
+TINY_KWARGS: dict[str, Any] = {
+    "n_particles": 32,
+    "volume_fraction": 0.45,
+    "near_field_cutoff": 3.0,
+    "control_interval": 0.02,
+    "episode_steps": 10,
+    "mason_min": 0.1,
+    "preshear_strain": 1.0,
+    "split_sizes": {"train": 4, "validation": 2, "test": 2},
+    "target_viscosity": 7.0,
+}
+"""Arguments of the tiny variants: the smallest box the exact near field allows at phi = 0.45 with a
+3 a cut-off, short intervals and episodes, a narrower Mn range (Mn = 0.05 costs 4x the steps of 0.2)."""
+
+_SPECS = {
+    "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", DEFAULT_EPISODE_STEPS, {}),
+    "dipenv/FieldVector-v0": ("FieldVectorEnv", DEFAULT_EPISODE_STEPS, {}),
+    "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
+    "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
+}
+
+ENV_IDS = tuple(_SPECS)
+"""Every registered id."""
+
+for _env_id, (_cls, _steps, _kwargs) in _SPECS.items():
+    if _env_id not in registry:
+        register(
+            id=_env_id,
+            entry_point=f"dipenv.envs.field_control:{_cls}",
+            max_episode_steps=_steps,
+            kwargs=dict(_kwargs),
+        )

@@ -20,6 +20,7 @@ of each group of functions; conservative: against ``c = 14`` the ``c = 10`` valu
 Resumable: every finished node is appended (one JSON line) to a work file (default
 ``runs/near_field_stress_table/work.jsonl``, git-ignored); rerun the same command to continue, or use
 ``--chunk N`` for N nodes per call. Nodes run from large to small ``r`` (cheap first). One BLAS thread.
+Driver shared with ``generate_near_field_table.py``: ``sim/dipolophoresis/two_sphere/table_generator.py``.
 The default table (486 nodes, both orders) took 5.8 minutes on one core of the development machine (2
 shared cores), the four exact check points below the table (gaps 1e-4..3e-4, L up to 1014; skip with
 ``--no-contact-check``) 2.4 more.
@@ -32,13 +33,8 @@ Usage:
 
 from __future__ import annotations
 
-import argparse
-import datetime
-import json
-import math
 import os
 import sys
-import time
 from pathlib import Path
 
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -49,69 +45,38 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from sim.dipolophoresis.two_sphere import table_generator as driver  # noqa: E402
 from sim.dipolophoresis.two_sphere.stresslet import (  # noqa: E402
     ICEP_FAR_FIELD_COEFFICIENTS,
     STRESS_COLUMNS,
     STRESS_FUNCTION_NAMES,
+    PairStressletValues,
     fit_shifted_power,
     near_contact_nodes,
     shifted_power_value,
     solve_pair_stresslets,
 )
-from sim.dipolophoresis.two_sphere.tabulation import node_separations, read_table_text  # noqa: E402
-from sim.dipolophoresis.two_sphere.truncation import truncation_order  # noqa: E402
+from sim.dipolophoresis.two_sphere.tabulation import read_table_text  # noqa: E402
 
 DEFAULT_OUTPUT = REPO / "sim" / "dipolophoresis" / "tables" / "near_field_stress.txt"
 VELOCITY_TABLE = REPO / "sim" / "dipolophoresis" / "tables" / "near_field.txt"
 DEFAULT_WORK = REPO / "runs" / "near_field_stress_table" / "work.jsonl"  # runs/ is git-ignored
-CONTACT_CHECK_GAPS = (1e-4, 1.5e-4, 2e-4, 3e-4)
 REPORT_SEPARATIONS = (2.0005, 2.001, 2.005, 2.01, 2.05, 2.1, 2.5, 3.0, 4.0, 6.0, 10.0)
+ERROR_KEYS = ("error_icep", "error_dep", "error_force")
 
 
-def solve_node(r: float, constant: float, check_constant: float) -> dict:
-    """Both truncation orders at one separation; returns a JSON-serialisable record."""
-    start = time.perf_counter()
-    high = solve_pair_stresslets(r, truncation_order(r, constant))
-    low = solve_pair_stresslets(r, truncation_order(r, check_constant))
-    difference = np.abs(high.as_array() - low.as_array())
-    return {
-        "r": r,
-        "order": high.order,
-        "check_order": low.order,
-        "values": high.as_array().tolist(),
-        "force_mobility": list(high.force_mobility),
-        "error_icep": float(difference[:4].max()),
-        "error_dep": float(difference[4:7].max()),
-        "error_force": float(difference[7:].max()),
-        "symmetry_error": high.symmetry_error,
-        "seconds": time.perf_counter() - start,
-    }
+def extra_fields(solution: PairStressletValues) -> driver.Record:
+    """Work-file fields beyond the values and error estimates."""
+    return {"force_mobility": list(solution.force_mobility), "symmetry_error": solution.symmetry_error}
 
 
-def read_work(path: Path, settings: dict) -> dict[str, dict]:
-    """Finished records keyed by ``repr(r)``; the first line holds the settings, which must match."""
-    if not path.exists():
-        path.write_text(json.dumps({"settings": settings}) + "\n")
-        return {}
-    lines = path.read_text().splitlines()
-    stored = json.loads(lines[0]).get("settings")
-    if stored != settings:
-        raise SystemExit(
-            f"{path}: settings {stored} differ from {settings}; delete it or use the same options"
-        )
-    records = {}
-    for line in lines[1:]:
-        if line.strip():
-            record = json.loads(line)
-            records[repr(record["r"])] = record
-    return records
-
-
-def append_work(path: Path, record: dict) -> None:
-    with path.open("a") as handle:
-        handle.write(json.dumps(record) + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
+def check_default_nodes(nodes: np.ndarray, settings: driver.Record) -> None:
+    """The default nodes must be those of ``near_field.txt`` (bit for bit)."""
+    default = settings["gap_min"] == 5e-4 and settings["r_max"] == 10.0 and settings["spacing"] == 0.02
+    if VELOCITY_TABLE.exists() and default:
+        velocity_nodes = read_table_text(VELOCITY_TABLE.read_text()).r
+        if not np.array_equal(nodes, velocity_nodes):
+            raise SystemExit("the default nodes differ from those of near_field.txt")
 
 
 def far_field_values(r: float) -> np.ndarray:
@@ -122,15 +87,15 @@ def far_field_values(r: float) -> np.ndarray:
     return np.concatenate([icep, dep, force])
 
 
-def format_table(records: list[dict], contact: list[dict], settings: dict, command: str) -> str:
+def format_table(
+    records: list[driver.Record], contact: list[driver.Record], settings: driver.Record, command: str
+) -> str:
     """Table text: provenance header, column line, one row per node."""
-    r = np.array([rec["r"] for rec in records])
-    values = np.array([rec["values"] for rec in records]).T
-    errors = {
-        key: np.array([rec[key] for rec in records]) for key in ("error_icep", "error_dep", "error_force")
-    }
-    symmetry = np.array([rec["symmetry_error"] for rec in records])
-    orders = np.array([rec["order"] for rec in records])
+    r, values, symmetry, orders, *error_columns = driver.record_columns(
+        records, "r", "values", "symmetry_error", "order", *ERROR_KEYS
+    )
+    values = values.T
+    errors = dict(zip(ERROR_KEYS, error_columns, strict=True))
     c_value, c_check = settings["order_constant"], settings["check_constant"]
     lines = [
         "# Exact two-sphere stresslets of equal ideally polarisable spheres (thin, fully polarised double",
@@ -167,15 +132,11 @@ def format_table(records: list[dict], contact: list[dict], settings: dict, comma
     ]
     for target in REPORT_SEPARATIONS:
         k = int(np.argmin(np.abs(r - target)))
-        lines.append(
-            f"#   r = {r[k]:.6f}  L = {orders[k]:4d}  error_icep = {errors['error_icep'][k]:.1e}"
-            f"  error_dep = {errors['error_dep'][k]:.1e}  error_force = {errors['error_force'][k]:.1e}"
-        )
+        lines.append(driver.error_report_line(r[k], orders[k], {key: errors[key][k] for key in ERROR_KEYS}))
         lines.append("#       exact " + " ".join(f"{v: .4e}" for v in values[:, k]))
         lines.append("#       far   " + " ".join(f"{v: .4e}" for v in far_field_values(float(r[k]))))
     lines += [
-        f"# Nodes: those of near_field.txt: r = 2 + exp(s), s uniform, {r.shape[0]} nodes from r = {r[0]:.6f}"
-        f" to {r[-1]:.6f} (ds = {math.log(r[1] - 2) - math.log(r[0] - 2):.6f}).",
+        driver.nodes_line(r, prefix="those of near_field.txt: "),
         "# Interpolation (sim/dipolophoresis/near_field_stress.py): cubic not-a-knot spline in",
         "# s = ln(r - 2).",
         "# Beyond the last node: the far-field forms above. Below the first node (gap xi < xi_0):",
@@ -187,111 +148,31 @@ def format_table(records: list[dict], contact: list[dict], settings: dict, comma
     fits = [fit_shifted_power(r[fit_nodes] - 2.0, values[k, fit_nodes]) for k in range(values.shape[0])]
     for name, (c_fit, a_fit, p_fit) in zip(STRESS_FUNCTION_NAMES, fits, strict=True):
         lines.append(f"#   {name:11s} C = {c_fit: .6e}  A = {a_fit: .6e}  p = {p_fit: .5f}")
-    if contact:
-        lines.append("# Check of these forms against exact solutions below the table (same c), form - exact:")
-        for rec in contact:
-            gap = rec["r"] - 2.0
-            predicted = [shifted_power_value(gap, fit) for fit in fits]
-            deviation = " ".join(f"{x - y: .1e}" for x, y in zip(predicted, rec["values"], strict=True))
-            exact = " ".join(f"{v: .5e}" for v in rec["values"])
-            lines.append(f"#   xi = {gap:.1e} (L = {rec['order']}): exact {exact}")
-            lines.append(f"#       form - exact: {deviation}")
-    lines += [f"# Generated {datetime.date.today().isoformat()} by: {command}", " ".join(STRESS_COLUMNS)]
-    for k in range(r.shape[0]):
-        row = " ".join(f"{v: .12e}" for v in values[:, k])
-        lines.append(
-            f"{float(r[k])!r} {row} {orders[k]:d} {errors['error_icep'][k]:.2e} {errors['error_dep'][k]:.2e}"
-            f" {errors['error_force'][k]:.2e} {symmetry[k]:.1e}"
-        )
+    lines += driver.contact_check_lines(
+        contact, lambda gap: [shifted_power_value(gap, fit) for fit in fits], digits=5
+    )
+    estimates = [(errors[key], ".2e") for key in ERROR_KEYS] + [(symmetry, ".1e")]
+    lines += driver.table_body(command, STRESS_COLUMNS, r, values, orders, estimates)
     return "\n".join(lines) + "\n"
 
 
-def convergence_study() -> None:
-    """Print max |F(L) - F(L_ref)| over the ten functions for several truncation constants."""
-    constants = (4.0, 6.0, 8.0, 10.0)
-    print(
-        "r        "
-        + "  ".join(f"c={c:g}(L)" for c in constants)
-        + "   [max error over 10 functions, ref c=12]"
-    )
-    for r in REPORT_SEPARATIONS:
-        reference = solve_pair_stresslets(r, truncation_order(r, 12.0)).as_array()
-        cells = []
-        for c in constants:
-            order = truncation_order(r, c)
-            error = np.abs(solve_pair_stresslets(r, order).as_array() - reference).max()
-            cells.append(f"{error:.1e}({order})")
-        print(f"{r:<8g} " + "  ".join(cells), flush=True)
+GENERATOR = driver.TableGenerator[PairStressletValues](
+    script="scripts/generate_near_field_stress_table.py",
+    description=__doc__ or "",
+    default_output=DEFAULT_OUTPUT,
+    default_work=DEFAULT_WORK,
+    solve=solve_pair_stresslets,
+    error_groups={"error_icep": slice(0, 4), "error_dep": slice(4, 7), "error_force": slice(7, None)},
+    format_table=format_table,
+    report_separations=REPORT_SEPARATIONS,
+    convergence_label="10 functions",
+    extra_fields=extra_fields,
+    check_nodes=check_default_nodes,
+)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--r-max", type=float, default=10.0, help="last node (default 10)")
-    parser.add_argument("--gap-min", type=float, default=5e-4, help="first node's gap r - 2 (default 5e-4)")
-    parser.add_argument("--spacing", type=float, default=0.02, help="max step in ln(r - 2) (default 0.02)")
-    parser.add_argument("--order-constant", type=float, default=10.0, help="c of L = 14 + c/sqrt(r-2)")
-    parser.add_argument("--check-constant", type=float, default=8.0, help="c of the error-estimate solve")
-    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
-    parser.add_argument(
-        "--work", type=Path, default=DEFAULT_WORK, help=f"resumable work file ({DEFAULT_WORK})"
-    )
-    parser.add_argument(
-        "--chunk", type=int, default=None, help="compute at most this many new nodes, then stop"
-    )
-    parser.add_argument(
-        "--no-contact-check", action="store_true", help="skip the exact points below the table"
-    )
-    parser.add_argument("--convergence", action="store_true", help="print the convergence study and exit")
-    args = parser.parse_args()
-    if args.convergence:
-        convergence_study()
-        return
-    settings = {
-        "r_max": args.r_max,
-        "gap_min": args.gap_min,
-        "spacing": args.spacing,
-        "order_constant": args.order_constant,
-        "check_constant": args.check_constant,
-    }
-    nodes = node_separations(args.gap_min, args.r_max, args.spacing)
-    if VELOCITY_TABLE.exists() and args.gap_min == 5e-4 and args.r_max == 10.0 and args.spacing == 0.02:
-        velocity_nodes = read_table_text(VELOCITY_TABLE.read_text()).r
-        if not np.array_equal(nodes, velocity_nodes):
-            raise SystemExit("the default nodes differ from those of near_field.txt")
-    work = args.work
-    work.parent.mkdir(parents=True, exist_ok=True)
-    records = read_work(work, settings)
-    todo = [float(r) for r in nodes[::-1] if repr(float(r)) not in records]
-    contact_nodes = [] if args.no_contact_check else [2.0 + gap for gap in CONTACT_CHECK_GAPS[::-1]]
-    todo_contact = [r for r in contact_nodes if repr(r) not in records]
-    print(
-        f"{len(nodes)} nodes, {len(nodes) - len(todo)} done; {len(todo_contact)} contact checks to do",
-        flush=True,
-    )
-    budget = args.chunk if args.chunk is not None else len(todo) + len(todo_contact)
-    started = time.perf_counter()
-    for count, r in enumerate(todo + todo_contact):
-        if count >= budget:
-            print(f"chunk of {budget} done; rerun to continue", flush=True)
-            return
-        record = solve_node(r, args.order_constant, args.check_constant)
-        append_work(work, record)
-        records[repr(r)] = record
-        print(
-            f"[{count + 1}/{len(todo) + len(todo_contact)}] r = {r:.6f} L = {record['order']}"
-            f" err_icep = {record['error_icep']:.1e} err_dep = {record['error_dep']:.1e}"
-            f" err_force = {record['error_force']:.1e} ({record['seconds']:.1f} s,"
-            f" total {time.perf_counter() - started:.0f} s)",
-            flush=True,
-        )
-    table_records = [records[repr(float(r))] for r in nodes]
-    contact = [records[repr(r)] for r in sorted(contact_nodes)]
-    command = "python scripts/generate_near_field_stress_table.py " + " ".join(sys.argv[1:])
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(format_table(table_records, contact, settings, command.strip()))
-    print(f"wrote {args.output} ({len(table_records)} nodes)", flush=True)
+    GENERATOR.main()
 
 
 if __name__ == "__main__":

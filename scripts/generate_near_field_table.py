@@ -17,7 +17,8 @@ bound: the error falls by ~20x from ``c = 8`` to ``c = 10``).
 
 Work is resumable: every finished node is appended (one JSON line) to a work file (default
 ``runs/near_field_table/work.jsonl``, git-ignored); rerun the same command to continue, or use
-``--chunk N`` to do N nodes per call. Nodes are computed from large to small ``r`` (cheap first). The
+``--chunk N`` to do N nodes per call. Nodes are computed from large to small ``r`` (cheap first); the
+driver is shared with the stress table's generator (``sim/dipolophoresis/two_sphere/table_generator.py``). The
 default table (486 nodes, r = 2.0005..10) took 4.6 minutes on one core of the development machine;
 the four exact near-contact check points below the table (gaps 1e-4..3e-4, L up to 1014; skip with
 ``--no-contact-check``) another 1.6 minutes.
@@ -30,13 +31,8 @@ Usage:
 
 from __future__ import annotations
 
-import argparse
-import datetime
-import json
-import math
 import os
 import sys
-import time
 from pathlib import Path
 
 # One BLAS thread unless the caller asks otherwise: the dense solves are small (<= 6000 unknowns) and
@@ -49,7 +45,8 @@ import numpy as np  # noqa: E402
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from sim.dipolophoresis.two_sphere.solution import solve_pair_functions, truncation_order  # noqa: E402
+from sim.dipolophoresis.two_sphere import table_generator as driver  # noqa: E402
+from sim.dipolophoresis.two_sphere.solution import PairFunctionValues, solve_pair_functions  # noqa: E402
 from sim.dipolophoresis.two_sphere.tabulation import (  # noqa: E402
     COLUMNS,
     FUNCTION_NAMES,
@@ -58,65 +55,21 @@ from sim.dipolophoresis.two_sphere.tabulation import (  # noqa: E402
     fit_near_contact,
     near_contact_points,
     near_contact_value,
-    node_separations,
 )
 
 DEFAULT_OUTPUT = REPO / "sim" / "dipolophoresis" / "tables" / "near_field.txt"
 DEFAULT_WORK = REPO / "runs" / "near_field_table" / "work.jsonl"  # runs/ is git-ignored
-CONTACT_CHECK_GAPS = (1e-4, 1.5e-4, 2e-4, 3e-4)
 REPORT_SEPARATIONS = (2.0005, 2.001, 2.005, 2.01, 2.05, 2.1, 2.5, 3.0, 4.0, 5.0, 10.0)
 
 
-def solve_node(r: float, constant: float, check_constant: float) -> dict:
-    """Both truncation orders at one separation; returns a JSON-serialisable record."""
-    start = time.perf_counter()
-    high = solve_pair_functions(r, truncation_order(r, constant))
-    low = solve_pair_functions(r, truncation_order(r, check_constant))
-    difference = np.abs(high.as_array() - low.as_array())
-    return {
-        "r": r,
-        "order": high.order,
-        "check_order": low.order,
-        "values": high.as_array().tolist(),
-        "error_icep": float(difference[:3].max()),
-        "error_dep": float(difference[3:].max()),
-        "seconds": time.perf_counter() - start,
-    }
-
-
-def read_work(path: Path, settings: dict) -> dict[str, dict]:
-    """Finished records keyed by ``repr(r)``; the first line holds the settings, which must match."""
-    if not path.exists():
-        path.write_text(json.dumps({"settings": settings}) + "\n")
-        return {}
-    lines = path.read_text().splitlines()
-    stored = json.loads(lines[0]).get("settings")
-    if stored != settings:
-        raise SystemExit(
-            f"{path}: settings {stored} differ from {settings}; delete it or use the same options"
-        )
-    records = {}
-    for line in lines[1:]:
-        if line.strip():
-            record = json.loads(line)
-            records[repr(record["r"])] = record
-    return records
-
-
-def append_work(path: Path, record: dict) -> None:
-    with path.open("a") as handle:
-        handle.write(json.dumps(record) + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-
-
-def format_table(records: list[dict], contact: list[dict], settings: dict, command: str) -> str:
+def format_table(
+    records: list[driver.Record], contact: list[driver.Record], settings: driver.Record, command: str
+) -> str:
     """Table text: provenance header, column line, one row per node."""
-    r = np.array([rec["r"] for rec in records])
-    values = np.array([rec["values"] for rec in records]).T
-    err_icep = np.array([rec["error_icep"] for rec in records])
-    err_dep = np.array([rec["error_dep"] for rec in records])
-    orders = np.array([rec["order"] for rec in records])
+    r, values, err_icep, err_dep, orders = driver.record_columns(
+        records, "r", "values", "error_icep", "error_dep", "order"
+    )
+    values = values.T
     c_value, c_check = settings["order_constant"], settings["check_constant"]
     lines = [
         "# Exact two-sphere dipolophoresis functions of equal ideally polarisable spheres (thin, fully",
@@ -143,12 +96,10 @@ def format_table(records: list[dict], contact: list[dict], settings: dict, comma
     for target in REPORT_SEPARATIONS:
         k = int(np.argmin(np.abs(r - target)))
         lines.append(
-            f"#   r = {r[k]:.6f}  L = {orders[k]:4d}  error_icep = {err_icep[k]:.1e}"
-            f"  error_dep = {err_dep[k]:.1e}"
+            driver.error_report_line(r[k], orders[k], {"error_icep": err_icep[k], "error_dep": err_dep[k]})
         )
     lines += [
-        f"# Nodes: r = 2 + exp(s), s uniform, {r.shape[0]} nodes from r = {r[0]:.6f} to {r[-1]:.6f}"
-        f" (ds = {math.log(r[1] - 2) - math.log(r[0] - 2):.6f}).",
+        driver.nodes_line(r),
         "# Interpolation (sim/dipolophoresis/near_field.py): cubic not-a-knot spline in s = ln(r - 2).",
         "# Beyond the last node: far-field forms (physics.md section 4). Below the first node",
         "# (gap xi < xi_0): forms fitted exactly through the nodes at xi_0, ~2 xi_0, ~4 xi_0",
@@ -164,109 +115,32 @@ def format_table(records: list[dict], contact: list[dict], settings: dict, comma
             lines.append(f"#   {name:12s} log   C = {first: .6e}  a = {second: .6e}  b = {third: .6e}")
         else:
             lines.append(f"#   {name:12s} power A = {first: .6e}  B = {second: .6e}  p = {third: .5f}")
-    if contact:
-        lines.append("# Check of these forms against exact solutions below the table (same c), form - exact:")
-        for rec in contact:
-            gap = rec["r"] - 2.0
-            predicted = [
-                near_contact_value(gap, form, fit) for form, fit in zip(NEAR_CONTACT_FORMS, fits, strict=True)
-            ]
-            deviation = " ".join(f"{x - y: .1e}" for x, y in zip(predicted, rec["values"], strict=True))
-            exact = " ".join(f"{v: .6e}" for v in rec["values"])
-            lines.append(f"#   xi = {gap:.1e} (L = {rec['order']}): exact {exact}")
-            lines.append(f"#       form - exact: {deviation}")
-    lines += [
-        f"# Generated {datetime.date.today().isoformat()} by: {command}",
-        " ".join(COLUMNS),
-    ]
-    for k in range(r.shape[0]):
-        row = " ".join(f"{v: .12e}" for v in values[:, k])
-        # repr(r): the exact float at which the node was solved (round-trips), so ln(r - 2) is exact.
-        lines.append(f"{float(r[k])!r} {row} {orders[k]:d} {err_icep[k]:.2e} {err_dep[k]:.2e}")
+    lines += driver.contact_check_lines(
+        contact,
+        lambda gap: [
+            near_contact_value(gap, form, fit) for form, fit in zip(NEAR_CONTACT_FORMS, fits, strict=True)
+        ],
+        digits=6,
+    )
+    lines += driver.table_body(command, COLUMNS, r, values, orders, [(err_icep, ".2e"), (err_dep, ".2e")])
     return "\n".join(lines) + "\n"
 
 
-def convergence_study() -> None:
-    """Print |F(L) - F(L_ref)| for several truncation constants at the report separations."""
-    constants = (4.0, 6.0, 8.0, 10.0)
-    print(
-        "r        "
-        + "  ".join(f"c={c:g}(L)" for c in constants)
-        + "   [max error over the 6 functions, ref c=12]"
-    )
-    for r in REPORT_SEPARATIONS:
-        reference = solve_pair_functions(r, truncation_order(r, 12.0)).as_array()
-        cells = []
-        for c in constants:
-            order = truncation_order(r, c)
-            error = np.abs(solve_pair_functions(r, order).as_array() - reference).max()
-            cells.append(f"{error:.1e}({order})")
-        print(f"{r:<8g} " + "  ".join(cells), flush=True)
+GENERATOR = driver.TableGenerator[PairFunctionValues](
+    script="scripts/generate_near_field_table.py",
+    description=__doc__ or "",
+    default_output=DEFAULT_OUTPUT,
+    default_work=DEFAULT_WORK,
+    solve=solve_pair_functions,
+    error_groups={"error_icep": slice(0, 3), "error_dep": slice(3, 6)},
+    format_table=format_table,
+    report_separations=REPORT_SEPARATIONS,
+    convergence_label="the 6 functions",
+)
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--r-max", type=float, default=10.0, help="last node (default 10)")
-    parser.add_argument("--gap-min", type=float, default=5e-4, help="first node's gap r - 2 (default 5e-4)")
-    parser.add_argument("--spacing", type=float, default=0.02, help="max step in ln(r - 2) (default 0.02)")
-    parser.add_argument("--order-constant", type=float, default=10.0, help="c of L = 14 + c/sqrt(r-2)")
-    parser.add_argument("--check-constant", type=float, default=8.0, help="c of the error-estimate solve")
-    parser.add_argument("--output", type=Path, default=DEFAULT_OUTPUT)
-    parser.add_argument(
-        "--work", type=Path, default=DEFAULT_WORK, help=f"resumable work file (default {DEFAULT_WORK})"
-    )
-    parser.add_argument(
-        "--chunk", type=int, default=None, help="compute at most this many new nodes, then stop"
-    )
-    parser.add_argument(
-        "--no-contact-check", action="store_true", help="skip the exact points below the table"
-    )
-    parser.add_argument("--convergence", action="store_true", help="print the convergence study and exit")
-    args = parser.parse_args()
-    if args.convergence:
-        convergence_study()
-        return
-    settings = {
-        "r_max": args.r_max,
-        "gap_min": args.gap_min,
-        "spacing": args.spacing,
-        "order_constant": args.order_constant,
-        "check_constant": args.check_constant,
-    }
-    work = args.work
-    work.parent.mkdir(parents=True, exist_ok=True)
-    records = read_work(work, settings)
-    nodes = node_separations(args.gap_min, args.r_max, args.spacing)
-    todo = [float(r) for r in nodes[::-1] if repr(float(r)) not in records]
-    contact_nodes = [] if args.no_contact_check else [2.0 + gap for gap in CONTACT_CHECK_GAPS[::-1]]
-    todo_contact = [r for r in contact_nodes if repr(r) not in records]
-    print(
-        f"{len(nodes)} nodes, {len(nodes) - len(todo)} done; {len(todo_contact)} contact checks to do",
-        flush=True,
-    )
-    budget = args.chunk if args.chunk is not None else len(todo) + len(todo_contact)
-    started = time.perf_counter()
-    for count, r in enumerate(todo + todo_contact):
-        if count >= budget:
-            print(f"chunk of {budget} done; rerun to continue", flush=True)
-            return
-        record = solve_node(r, args.order_constant, args.check_constant)
-        append_work(work, record)
-        records[repr(r)] = record
-        print(
-            f"[{count + 1}/{len(todo) + len(todo_contact)}] r = {r:.6f} L = {record['order']}"
-            f" err_icep = {record['error_icep']:.1e} err_dep = {record['error_dep']:.1e}"
-            f" ({record['seconds']:.1f} s, total {time.perf_counter() - started:.0f} s)",
-            flush=True,
-        )
-    table_records = [records[repr(float(r))] for r in nodes]
-    contact = [records[repr(r)] for r in sorted(contact_nodes)]
-    command = "python scripts/generate_near_field_table.py " + " ".join(sys.argv[1:])
-    args.output.parent.mkdir(parents=True, exist_ok=True)
-    args.output.write_text(format_table(table_records, contact, settings, command.strip()))
-    print(f"wrote {args.output} ({len(table_records)} nodes)", flush=True)
+    GENERATOR.main()
 
 
 if __name__ == "__main__":

@@ -15,7 +15,9 @@ NUMBA_CACHE_DIR = configure_numba_cache()
 from sim.config import MECHANISMS, NEAR_FIELD_MODELS, SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
+from sim.io import versions
 from sim.observables.interparticle_stress import InterparticleStress, interparticle_stress
+from sim.observables.microstructure import angular_pair_distribution, contact_number, fabric_tensor
 from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
 from sim.run import run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
@@ -42,4 +44,8 @@ __all__ = [
     "rheology",
     "run_simulation",
     "summarise",
+    "versions",
+    "angular_pair_distribution",
+    "contact_number",
+    "fabric_tensor",
 ]

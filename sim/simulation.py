@@ -139,7 +139,7 @@ class Simulation:
 
     Args:
         config: the run's parameters (its ``mason_number`` and ``field_direction`` are the initial field).
-        state: start from this state instead of a fresh random packing.
+        state: start from a copy of this state instead of a fresh random packing.
         keep_records: keep every step's records (needed by :meth:`rheology`); environments that only
             read each chunk's records pass False so that memory stays flat.
 
@@ -164,7 +164,7 @@ class Simulation:
             raise ValueError(
                 f"state has {state.positions.shape[0]} particles but config.n_particles={config.n_particles}"
             )
-        self.state = state
+        self.state = state.copy()  # the caller's state object is never stepped
         self.keep_records = keep_records
         self._chunks: list[StepRecords] = []
         self._params = step_parameters(config)

@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
+from two_sphere_helpers import radii_in_every_regime
 
 from sim.dipolophoresis import near_field
 from sim.dipolophoresis.near_field import (
@@ -181,10 +182,7 @@ def test_pair_functions_contract() -> None:
 
 def test_numba_kernel_matches_numpy_evaluator() -> None:
     """Compiled kernels (arrays passed in / module globals) equal pair_functions in every regime."""
-    rng = np.random.default_rng(7)
-    radii = np.concatenate(
-        [[2.0, 2.0001, R_TABLE_MIN, R_TABLE_MAX, 11.0], 2.0 + np.exp(rng.uniform(-9, 3, 200))]
-    )
+    radii = radii_in_every_regime(7, 200, R_TABLE_MIN, R_TABLE_MAX)
     for mechanism, code in MECHANISMS.items():
         expected = np.array(pair_functions(radii, mechanism))
         kernel = np.array(

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.interpolate import CubicSpline
+from two_sphere_helpers import radii_in_every_regime
 
 from sim.dipolophoresis.near_field import GAP_FLOOR
 from sim.dipolophoresis.near_field import TABLE as VELOCITY_TABLE
@@ -186,10 +187,7 @@ def test_contracts_and_bad_input() -> None:
 
 def test_compiled_kernels_match_numpy() -> None:
     """near_field_stress_kernel and dep_force_kernel equal the numpy evaluators in every regime (1e-13)."""
-    rng = np.random.default_rng(5)
-    radii = np.concatenate(
-        [[2.0, 2.0001, R_STRESS_TABLE_MIN, R_STRESS_TABLE_MAX, 11.0], 2 + np.exp(rng.uniform(-9, 3, 100))]
-    )
+    radii = radii_in_every_regime(5, 100, R_STRESS_TABLE_MIN, R_STRESS_TABLE_MAX)
     for mechanism, code in MECHANISMS.items():
         expected = np.array(pair_stress_functions(radii, mechanism))
         compiled = np.array([near_field_stress_kernel(r, code, *ARRAYS) for r in radii]).T

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from two_sphere_helpers import electric_and_stokes
 
 from sim.dipolophoresis.two_sphere.electric import solve_electric
 from sim.dipolophoresis.two_sphere.icep import icep_slips, uniform_zeta_velocities
@@ -25,18 +26,9 @@ def far_field_icep(r: float) -> np.ndarray:
     return np.array([-9 / (4 * r**2) + 11 / (2 * r**4), 9 / (8 * r**2) - 11 / (4 * r**4), -11 / (4 * r**4)])
 
 
-def systems(r: float | None, order: int) -> tuple:
-    return (
-        solve_electric(r, 0, order),
-        solve_electric(r, 1, order),
-        TwoSphereStokes(r, 0, order),
-        TwoSphereStokes(r, 1, order),
-    )
-
-
 def test_isolated_sphere_does_not_move() -> None:
     """A single sphere: ICEP slip is symmetric, velocity 0 (to rounding, 1e-14)."""
-    axial, transverse, stokes0, stokes1 = systems(None, 12)
+    axial, transverse, stokes0, stokes1 = electric_and_stokes(None, 12)
     slips = icep_slips(axial, transverse, stokes0, stokes1)
     for slip, stokes in zip(slips, (stokes0, stokes0, stokes1), strict=True):
         motion = stokes.solve_mobility(slip=slip)
@@ -59,7 +51,7 @@ def test_reed_morrison_uniform_zeta(r: float, m: int) -> None:
 def test_spheres_move_in_opposite_directions(r: float) -> None:
     """U_beta = -U_alpha for equal spheres (reflection symmetry), to 1e-9 of the velocity scale."""
     order = truncation_order(r, 7.0)
-    axial, transverse, stokes0, stokes1 = systems(r, order)
+    axial, transverse, stokes0, stokes1 = electric_and_stokes(r, order)
     slips = icep_slips(axial, transverse, stokes0, stokes1)
     for slip, stokes in zip(slips, (stokes0, stokes0, stokes1), strict=True):
         motion = stokes.solve_mobility(slip=slip)

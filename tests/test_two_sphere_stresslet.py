@@ -23,6 +23,7 @@ import math
 import numpy as np
 import pytest
 from dense_reference import load_reference_table, pair_blocks
+from two_sphere_helpers import electric_and_stokes
 
 from sim.dipolophoresis.near_field import pair_functions
 from sim.dipolophoresis.two_sphere.electric import solve_electric
@@ -49,13 +50,8 @@ Z_HAT = np.array([0.0, 0.0, 1.0])
 
 
 def systems(r: float | None, order: int) -> tuple:
-    return (
-        solve_electric(r, 0, order),
-        solve_electric(r, 1, order),
-        TwoSphereStokes(r, 0, order),
-        TwoSphereStokes(r, 1, order),
-        QuadrupolarStokes(r, order),
-    )
+    """The electric solutions and the Stokes systems of azimuthal orders 0, 1 and 2."""
+    return (*electric_and_stokes(r, order), QuadrupolarStokes(r, order))
 
 
 def physics_md_far_field(e: np.ndarray, xh: np.ndarray, r: float) -> np.ndarray:

@@ -50,7 +50,7 @@ References:
 from __future__ import annotations
 
 import math
-from importlib import resources
+from collections.abc import Callable
 from typing import Final, overload
 
 import numpy as np
@@ -62,7 +62,9 @@ from sim.dipolophoresis.two_sphere.tabulation import (
     NEAR_CONTACT_FORMS,
     NearFieldTable,
     fit_near_contact,
+    log_gap_grid,
     near_contact_points,
+    packaged_table_text,
     read_table_text,
 )
 
@@ -83,8 +85,7 @@ SPLINE_ERROR_NOTE: Final = (
 
 def load_table() -> NearFieldTable:
     """Read the packaged table ``sim/dipolophoresis/tables/near_field.txt`` (package data)."""
-    text = resources.files("sim.dipolophoresis").joinpath("tables", "near_field.txt").read_text()
-    return read_table_text(text)
+    return read_table_text(packaged_table_text("near_field.txt"))
 
 
 def not_a_knot_spline(values: FloatArray, spacing: float) -> FloatArray:
@@ -122,6 +123,18 @@ def not_a_knot_spline(values: FloatArray, spacing: float) -> FloatArray:
     return coefficients
 
 
+def spline_coefficients(values: FloatArray, spacing: float) -> FloatArray:
+    """:func:`not_a_knot_spline` of every row of ``values`` (shape ``(n_functions, n)``).
+
+    Returns:
+        shape ``(n_functions, n - 1, 4)``, C-contiguous: ascending powers of ``s - s_k`` on interval ``k``.
+    """
+    coefficients = np.empty((values.shape[0], values.shape[1] - 1, 4))
+    for k in range(values.shape[0]):
+        coefficients[k] = not_a_knot_spline(values[k], spacing)
+    return np.ascontiguousarray(coefficients)
+
+
 def build_coefficients(table: NearFieldTable) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Spline coefficients and the parameters of the evaluators.
 
@@ -138,20 +151,15 @@ def build_coefficients(table: NearFieldTable) -> tuple[FloatArray, FloatArray, F
     Raises:
         ValueError: if the nodes are not uniform in ``ln(r - 2)``.
     """
-    s = np.log(table.r - 2.0)
-    ds = (s[-1] - s[0]) / (s.shape[0] - 1)
-    if np.abs(np.diff(s) - ds).max() > 1e-9 * ds:
-        raise ValueError("near-field table: nodes are not uniform in ln(r - 2)")
-    coefficients = np.empty((6, s.shape[0] - 1, 4))
+    grid = log_gap_grid(table.r, GAP_FLOOR, "near-field table")
+    coefficients = spline_coefficients(table.values, grid[1])
     asymptotics = np.empty((6, 4))
     fit_nodes = near_contact_points(table.r)
     for k in range(6):
-        coefficients[k] = not_a_knot_spline(table.values[k], ds)
         form = NEAR_CONTACT_FORMS[k]
         asymptotics[k, 0] = form
         asymptotics[k, 1:] = fit_near_contact(table.r[fit_nodes] - 2.0, table.values[k, fit_nodes], form)
-    grid = np.array([s[0], ds, float(s.shape[0]), table.r[-1], table.r[0] - 2.0, GAP_FLOOR])
-    return grid, np.ascontiguousarray(coefficients), asymptotics
+    return grid, coefficients, asymptotics
 
 
 TABLE: Final = load_table()
@@ -235,35 +243,87 @@ def near_field_functions(r: float, mechanism_code: int) -> tuple[float, float, f
     )
 
 
-def _evaluate_numpy(r: FloatArray, function: int) -> FloatArray:
-    """Vectorised twin of :func:`near_field_kernel` for one function (same coefficients)."""
-    grid, coefficients, asymptotics = NEAR_FIELD_GRID, NEAR_FIELD_COEFFICIENTS, NEAR_FIELD_ASYMPTOTICS
+def evaluate_piecewise(
+    r: FloatArray,
+    grid: FloatArray,
+    coefficients: FloatArray,
+    far_field: Callable[[FloatArray], FloatArray],
+    near_contact: Callable[[FloatArray], FloatArray],
+) -> FloatArray:
+    """Numpy evaluation of one tabulated function in its three regimes (the compiled kernels' twin).
+
+    Args:
+        r: shape ``(n_points,)``, centre distances ``>= 2``.
+        grid: as :func:`~sim.dipolophoresis.two_sphere.tabulation.log_gap_grid` returns it.
+        coefficients: shape ``(n - 1, 4)``, the function's spline (:func:`not_a_knot_spline`).
+        far_field: the far-field form at ``r > r_end`` (given those ``r``).
+        near_contact: the near-contact form at gaps ``xi < xi_0`` (given ``max(xi, gap floor)``).
+
+    Returns:
+        shape ``(n_points,)``; between the first and the last node the cubic in ``s - s_k`` on the interval
+        ``k`` of ``s = ln(r - 2)`` (clipped to the first and the last interval).
+    """
     out = np.empty_like(r)
     far = r > grid[3]
     near = (r - 2.0) < grid[4]
     inside = ~(far | near)
-    r2 = r[far] ** 2
-    far_values = (
-        -9.0 / (4.0 * r2) + 11.0 / (2.0 * r2**2),
-        9.0 / (8.0 * r2) - 11.0 / (4.0 * r2**2),
-        -11.0 / (4.0 * r2**2),
-        -1.0 / r2**2,
-        0.5 / r2**2,
-        0.5 / r2**2,
-    )
-    out[far] = far_values[function]
-    gap = np.maximum(r[near] - 2.0, grid[5])
-    form, first, second, third = asymptotics[function]
-    if form == LOG_FORM:
-        out[near] = first + second / np.log(1.0 / gap) + third / np.log(1.0 / gap) ** 2
-    else:
-        out[near] = first * gap**third * (1.0 + second * gap)
+    out[far] = far_field(r[far])
+    out[near] = near_contact(np.maximum(r[near] - 2.0, grid[5]))
     s = np.log(r[inside] - 2.0)
     k = np.clip(((s - grid[0]) / grid[1]).astype(np.int64), 0, int(grid[2]) - 2)
     h = s - (grid[0] + k * grid[1])
-    coeff = coefficients[function, k]
+    coeff = coefficients[k]
     out[inside] = coeff[:, 0] + h * (coeff[:, 1] + h * (coeff[:, 2] + h * coeff[:, 3]))
     return out
+
+
+def mechanism_code(mechanism: str) -> int:
+    """The code of a mechanism name in :data:`MECHANISMS`.
+
+    Raises:
+        ValueError: if ``mechanism`` is unknown.
+    """
+    if mechanism not in MECHANISMS:
+        raise ValueError(f"mechanism must be one of {sorted(MECHANISMS)}, got {mechanism!r}")
+    return MECHANISMS[mechanism]
+
+
+def validate_separations(r: ArrayLike) -> tuple[bool, FloatArray]:
+    """``(is_scalar, r as a float array)`` of the evaluators' argument.
+
+    Raises:
+        ValueError: if any ``r`` is below 2 (overlapping spheres) or not finite.
+    """
+    scalar = np.ndim(r) == 0
+    r_array = np.asarray(r, dtype=float)
+    if not np.all(np.isfinite(r_array)) or np.any(r_array < 2.0):
+        bad = r_array[~(np.isfinite(r_array) & (r_array >= 2.0))]
+        raise ValueError(f"r must be finite and >= 2 (touching spheres); got r = {bad.ravel()[:5]}")
+    return scalar, r_array
+
+
+def _evaluate_numpy(r: FloatArray, function: int) -> FloatArray:
+    """Vectorised twin of :func:`near_field_kernel` for one function (same coefficients)."""
+    form, first, second, third = NEAR_FIELD_ASYMPTOTICS[function]
+
+    def far_field(r_far: FloatArray) -> FloatArray:
+        r2 = r_far**2
+        far_values = (
+            -9.0 / (4.0 * r2) + 11.0 / (2.0 * r2**2),
+            9.0 / (8.0 * r2) - 11.0 / (4.0 * r2**2),
+            -11.0 / (4.0 * r2**2),
+            -1.0 / r2**2,
+            0.5 / r2**2,
+            0.5 / r2**2,
+        )
+        return far_values[function]
+
+    def near_contact(gap: FloatArray) -> FloatArray:
+        if form == LOG_FORM:
+            return first + second / np.log(1.0 / gap) + third / np.log(1.0 / gap) ** 2
+        return first * gap**third * (1.0 + second * gap)
+
+    return evaluate_piecewise(r, NEAR_FIELD_GRID, NEAR_FIELD_COEFFICIENTS[function], far_field, near_contact)
 
 
 @overload
@@ -293,15 +353,9 @@ def pair_functions(
     Raises:
         ValueError: if ``mechanism`` is unknown, or if ``r`` < 2 or is not finite.
     """
-    if mechanism not in MECHANISMS:
-        raise ValueError(f"mechanism must be one of {sorted(MECHANISMS)}, got {mechanism!r}")
-    scalar = np.ndim(r) == 0
-    r_array = np.asarray(r, dtype=float)
-    if not np.all(np.isfinite(r_array)) or np.any(r_array < 2.0):
-        bad = r_array[~(np.isfinite(r_array) & (r_array >= 2.0))]
-        raise ValueError(f"r must be finite and >= 2 (touching spheres); got r = {bad.ravel()[:5]}")
+    code = mechanism_code(mechanism)
+    scalar, r_array = validate_separations(r)
     flat = r_array.ravel()
-    code = MECHANISMS[mechanism]
     functions = range(3) if code == 0 else range(3, 6) if code == 1 else range(6)
     results = [np.zeros_like(flat) for _ in range(3)]
     for function in functions:

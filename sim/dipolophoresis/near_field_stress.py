@@ -68,14 +68,20 @@ References:
 from __future__ import annotations
 
 import math
-from importlib import resources
 from typing import Final, overload
 
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from sim.dipolophoresis.near_field import GAP_FLOOR, MECHANISMS, not_a_knot_spline
+from sim.dipolophoresis.near_field import (
+    GAP_FLOOR,
+    MECHANISMS,
+    evaluate_piecewise,
+    mechanism_code,
+    spline_coefficients,
+    validate_separations,
+)
 from sim.dipolophoresis.two_sphere.stresslet import (
     STRESS_FUNCTION_NAMES,
     StressTable,
@@ -83,6 +89,7 @@ from sim.dipolophoresis.two_sphere.stresslet import (
     near_contact_nodes,
     read_stress_table_text,
 )
+from sim.dipolophoresis.two_sphere.tabulation import log_gap_grid, packaged_table_text
 
 FloatArray = NDArray[np.float64]
 
@@ -125,8 +132,7 @@ SPLINE_ERROR_NOTE: Final = (
 
 def load_stress_table() -> StressTable:
     """Read the packaged table ``sim/dipolophoresis/tables/near_field_stress.txt``."""
-    text = resources.files("sim.dipolophoresis").joinpath("tables", "near_field_stress.txt").read_text()
-    return read_stress_table_text(text)
+    return read_stress_table_text(packaged_table_text("near_field_stress.txt"))
 
 
 def build_stress_coefficients(table: StressTable) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -140,18 +146,13 @@ def build_stress_coefficients(table: StressTable) -> tuple[FloatArray, FloatArra
     Raises:
         ValueError: if the nodes are not uniform in ``ln(r - 2)``.
     """
-    s = np.log(table.r - 2.0)
-    ds = (s[-1] - s[0]) / (s.shape[0] - 1)
-    if np.abs(np.diff(s) - ds).max() > 1e-9 * ds:
-        raise ValueError("near-field stress table: nodes are not uniform in ln(r - 2)")
-    coefficients = np.empty((N_FUNCTIONS, s.shape[0] - 1, 4))
+    grid = log_gap_grid(table.r, GAP_FLOOR, "near-field stress table")
+    coefficients = spline_coefficients(table.values, grid[1])
     asymptotics = np.empty((N_FUNCTIONS, 3))
     nodes = near_contact_nodes(table.r)
     for k in range(N_FUNCTIONS):
-        coefficients[k] = not_a_knot_spline(table.values[k], ds)
         asymptotics[k] = fit_shifted_power(table.r[nodes] - 2.0, table.values[k, nodes])
-    grid = np.array([s[0], ds, float(s.shape[0]), table.r[-1], table.r[0] - 2.0, GAP_FLOOR])
-    return grid, np.ascontiguousarray(coefficients), asymptotics
+    return grid, coefficients, asymptotics
 
 
 STRESS_TABLE: Final = load_stress_table()
@@ -327,36 +328,20 @@ def pair_stress_corrections(
 
 def _evaluate_numpy(r: FloatArray, function: int) -> FloatArray:
     """Vectorised twin of the compiled evaluator for one function."""
-    grid, coefficients, asymptotics = STRESS_GRID, STRESS_COEFFICIENTS, STRESS_ASYMPTOTICS
-    out = np.empty_like(r)
-    far = r > grid[3]
-    near = (r - 2.0) < grid[4]
-    inside = ~(far | near)
-    rf = r[far]
-    far_values = (
-        9.0 / rf**3, -36.0 / rf**3, -22.5 / rf**3, 112.5 / rf**3,
-        8.0 / rf**8, 7.5 / rf**6, -22.5 / rf**6,
-        -6.0 / rf**4, 3.0 / rf**4, 3.0 / rf**4,
-    )  # fmt: skip
-    out[far] = far_values[function]
-    gap = np.maximum(r[near] - 2.0, grid[5])
-    c_fit, a_fit, p_fit = asymptotics[function]
-    out[near] = c_fit + a_fit * gap**p_fit
-    s = np.log(r[inside] - 2.0)
-    k = np.clip(((s - grid[0]) / grid[1]).astype(np.int64), 0, int(grid[2]) - 2)
-    h = s - (grid[0] + k * grid[1])
-    coeff = coefficients[function, k]
-    out[inside] = coeff[:, 0] + h * (coeff[:, 1] + h * (coeff[:, 2] + h * coeff[:, 3]))
-    return out
+    c_fit, a_fit, p_fit = STRESS_ASYMPTOTICS[function]
 
+    def far_field(rf: FloatArray) -> FloatArray:
+        far_values = (
+            9.0 / rf**3, -36.0 / rf**3, -22.5 / rf**3, 112.5 / rf**3,
+            8.0 / rf**8, 7.5 / rf**6, -22.5 / rf**6,
+            -6.0 / rf**4, 3.0 / rf**4, 3.0 / rf**4,
+        )  # fmt: skip
+        return far_values[function]
 
-def _validated(r: ArrayLike) -> tuple[bool, NDArray[np.float64]]:
-    scalar = np.ndim(r) == 0
-    r_array = np.asarray(r, dtype=float)
-    if not np.all(np.isfinite(r_array)) or np.any(r_array < 2.0):
-        bad = r_array[~(np.isfinite(r_array) & (r_array >= 2.0))]
-        raise ValueError(f"r must be finite and >= 2 (touching spheres); got r = {bad.ravel()[:5]}")
-    return scalar, r_array
+    def near_contact(gap: FloatArray) -> FloatArray:
+        return c_fit + a_fit * gap**p_fit
+
+    return evaluate_piecewise(r, STRESS_GRID, STRESS_COEFFICIENTS[function], far_field, near_contact)
 
 
 @overload
@@ -388,11 +373,9 @@ def pair_stress_functions(
     Raises:
         ValueError: if ``mechanism`` is unknown, or if ``r`` < 2 or is not finite.
     """
-    if mechanism not in MECHANISMS:
-        raise ValueError(f"mechanism must be one of {sorted(MECHANISMS)}, got {mechanism!r}")
-    scalar, r_array = _validated(r)
+    code = mechanism_code(mechanism)
+    scalar, r_array = validate_separations(r)
     flat = r_array.ravel()
-    code = MECHANISMS[mechanism]
     results = [np.zeros_like(flat) for _ in range(4)]
     if code != 1:
         for k in range(4):
@@ -429,7 +412,7 @@ def dep_force_functions(r: ArrayLike) -> tuple[float, float, float] | tuple[Floa
     Raises:
         ValueError: if ``r`` < 2 or is not finite.
     """
-    scalar, r_array = _validated(r)
+    scalar, r_array = validate_separations(r)
     flat = r_array.ravel()
     results = [_evaluate_numpy(flat, k) for k in (7, 8, 9)]
     if scalar:

@@ -7,7 +7,9 @@ Pairs are visited serially in the ``(i, j)`` order of the pair list, each push s
 positions updated by the previous ones (Gauss–Seidel), so the result is deterministic. Sweeps are
 repeated until a sweep finds no gap below ``min_gap``. In a dense contact network one push often
 closes a neighbouring gap, so a step can take many sweeps (about 16 on average at phi = 0.45,
-N = 2000); the sweeps therefore share a Verlet list (Verlet 1967) of the pairs within
+N = 2000, pure shear); after the first :data:`_PLAIN_SWEEPS` sweeps each push is over-relaxed by
+:data:`_OVER_RELAXATION` (the deficit is corrected 1.8 times), which cut the sweeps of dense runs under
+a strong field tenfold. The sweeps share a Verlet list (Verlet 1967) of the pairs within
 ``2 + min_gap + skin`` (skin ``0.1 a``), rebuilt only when the accumulated pushes could have brought an
 unlisted pair within reach (twice the largest accumulated push of a sphere exceeds the skin).
 
@@ -44,6 +46,14 @@ _LIST_MARGIN = 1e-6
 # Verlet skin of the candidate pair list shared by the sweeps (units a); capped so that the list's
 # reach stays within the exact minimum-image range L/2.
 _SKIN = 0.1
+_PLAIN_SWEEPS = 5
+"""Sweeps that push each overlapping pair exactly to the target gap; later sweeps over-relax."""
+_OVER_RELAXATION = 1.8
+"""Over-relaxation factor of the pushes after :data:`_PLAIN_SWEEPS` sweeps (successive over-relaxation
+of the Gauss–Seidel projection). When the field compresses clusters, a step's overlaps of up to the
+displacement bound (0.4% of the spacing) must travel through chains of touching spheres; plain pushes
+then needed ~200 sweeps per step at phi = 0.45, Mn = 0.1 (and hit the 10,000 cap), over-relaxed ones ~16.
+A pushed pair then ends with a gap of up to ``min_gap + 0.8 * deficit`` instead of ``min_gap``."""
 
 
 @njit(cache=True)
@@ -54,8 +64,9 @@ def remove_overlaps(
 
     For a pair ``(i, j)`` with centre separation ``r`` (minimum image of ``x_j - x_i``), unit vector
     ``n = r/|r|`` and gap ``h = |r| - 2 < min_gap``, both spheres move by
-    ``d = ((2 + min_gap)*(1 + 1e-9) - |r|)/2``: ``x_i -= d*n``, ``x_j += d*n`` (the pair's centre of
-    mass is unchanged). Exactly coincident centres are separated along ``x``. After each sweep the
+    ``d = ((2 + min_gap)*(1 + 1e-9) - |r|)/2`` (times :data:`_OVER_RELAXATION` after the first
+    :data:`_PLAIN_SWEEPS` sweeps): ``x_i -= d*n``, ``x_j += d*n`` (the pair's centre of mass is
+    unchanged). Exactly coincident centres are separated along ``x``. After each sweep the
     positions are wrapped with :func:`~sim.geometry.box.wrap_positions`.
 
     Args:
@@ -112,6 +123,8 @@ def remove_overlaps(
                 ny = 0.0
                 nz = 0.0
             d = 0.5 * (target - r)
+            if sweeps > _PLAIN_SWEEPS:
+                d *= _OVER_RELAXATION
             positions[i, 0] -= d * nx
             positions[i, 1] -= d * ny
             positions[i, 2] -= d * nz

@@ -1,4 +1,5 @@
-"""Offline exact two-sphere solvers for dipolophoresis (run by ``scripts/generate_near_field_table.py``).
+"""Offline exact two-sphere solvers for dipolophoresis (run by ``scripts/generate_near_field_table.py``
+and ``scripts/generate_near_field_stress_table.py``).
 
 Two equal ideally polarisable spheres (thin, fully polarised double layers) in a uniform field, sphere 1
 at the origin and sphere 2 at ``d z_hat``; units ``a = eta = eps = E0 = 1`` (velocities in
@@ -11,8 +12,11 @@ at the origin and sphere 2 at ``d z_hat``; units ``a = eta = eps = E0 = 1`` (vel
 * :mod:`.icep` -- force- and torque-free motion under the ICEP slip ``u_s = zeta grad_s(phi)``;
 * :mod:`.dep` -- Maxwell force times the exact two-sphere mobility;
 * :mod:`.solution` -- the six pair functions ``F_par, F_perp, F_x`` (ICEP, DEP) at one separation;
+* :mod:`.stresslet` -- the ``m = 2`` Stokes problem, the exact stresslets (ICEP, DEP) and the DEP force;
 * :mod:`.truncation`, :mod:`.legendre`, :mod:`.tabulation` -- truncation rule, Legendre functions and
-  the table format / near-contact fit shared with :mod:`sim.dipolophoresis.near_field`.
+  the table format / near-contact fit shared with :mod:`sim.dipolophoresis.near_field`;
+* :mod:`.table_generator` -- the driver both generator scripts share (command line, resumable work
+  file, loop over the nodes, common pieces of the table text).
 
 Plain numpy/scipy: nothing here runs inside the time step.
 

@@ -48,6 +48,7 @@ References:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,24 +96,124 @@ def lamb_velocities(
     value = table.value[1:]
     d_theta = table.d_dtheta[1:]
     m_sin = table.m_over_sin[1:]
+    return lamb_mode_velocities(n, value, d_theta, m_sin, r, 2 if m == 0 else 3)
+
+
+def lamb_mode_velocities(
+    n: FloatArray, value: FloatArray, d_theta: FloatArray, m_sin: FloatArray, r: FloatArray, n_types: int
+) -> FloatArray:
+    """Lamb's decaying modes of degrees ``n`` from the associated Legendre functions of one azimuthal order.
+
+    Shared by :func:`lamb_velocities` (``m = 0, 1``) and
+    :func:`~sim.dipolophoresis.two_sphere.stresslet.lamb_velocities_m2` (``m = 2``).
+
+    Args:
+        n: shape ``(n_degrees, 1)``, the degrees (floats).
+        value, d_theta, m_sin: shape ``(n_degrees, n_points)``, ``P_n^m``, ``dP_n^m/dtheta`` and
+            ``m P_n^m/sin(theta)`` at the points.
+        r: shape ``(n_points,)``, distance from the centre (``r > 0``).
+        n_types: 2 (potential and pressure modes: ``m = 0``) or 3 (also ``curl(x chi)``).
+
+    Returns:
+        shape ``(n_types, 3, n_degrees, n_points)``, as :func:`lamb_velocities`.
+    """
     log_r = np.log(r)[None, :]
     r_n2 = np.exp((-n - 2.0) * log_r)  # r^(-n-2)
     r_n1 = np.exp((-n - 1.0) * log_r)
     r_n0 = np.exp(-n * log_r)
     alpha = -(n - 2.0) / (2.0 * n * (2.0 * n - 1.0))
     beta = (n + 1.0) / (n * (2.0 * n - 1.0))
-    n_types = 2 if m == 0 else 3
-    out = np.zeros((n_types, 3, order, r.shape[0]))
+    out = np.zeros((n_types, 3, n.shape[0], r.shape[0]))
     out[0, 0] = -(n + 1.0) * r_n2 * value
     out[0, 1] = r_n2 * d_theta
     out[0, 2] = -r_n2 * m_sin
     out[1, 0] = (beta - (n + 1.0) * alpha) * r_n0 * value
     out[1, 1] = alpha * r_n0 * d_theta
     out[1, 2] = -alpha * r_n0 * m_sin
-    if m == 1:
+    if n_types == 3:
         out[2, 1] = r_n1 * m_sin
         out[2, 2] = -r_n1 * d_theta
     return out
+
+
+def galerkin_test_functions(
+    value: FloatArray, d_theta: FloatArray, m_sin: FloatArray, weights: FloatArray, n_types: int
+) -> FloatArray:
+    """Weighted, normalised test functions of one azimuthal order (radial, ``grad_s``, toroidal).
+
+    Args:
+        value, d_theta, m_sin: shape ``(n_degrees, n_quad)``, ``P_n^m``, ``dP_n^m/dtheta``,
+            ``m P_n^m/sin(theta)`` at the quadrature nodes.
+        weights: shape ``(n_quad,)``, the Gauss--Legendre weights.
+        n_types: 2 (``m = 0``: no toroidal functions) or 3.
+
+    Returns:
+        shape ``(n_types, 3, n_degrees, n_quad)``: each test function scaled to unit norm (Galerkin rows of
+        unit scale), times the weights.
+    """
+    tests = np.zeros((n_types, 3, value.shape[0], value.shape[1]))
+    tests[0, 0] = value
+    tests[1, 1] = d_theta
+    tests[1, 2] = -m_sin
+    if n_types == 3:
+        tests[2, 1] = -m_sin
+        tests[2, 2] = d_theta
+    norms = np.sqrt(np.einsum("tcnk,k->tn", tests**2, weights))
+    norms[norms == 0.0] = 1.0
+    return tests / norms[:, None, :, None] * weights
+
+
+def galerkin_matrix(
+    centres: list[float],
+    cos_theta: FloatArray,
+    sin_theta: FloatArray,
+    tests: FloatArray,
+    modes: Callable[[FloatArray, FloatArray, FloatArray], FloatArray],
+) -> FloatArray:
+    """Galerkin matrix of Lamb's modes about every centre, tested on every sphere's surface.
+
+    The modes of the other sphere are evaluated at this sphere's quadrature nodes (re-expansion by
+    quadrature) and turned from that sphere's spherical basis into this one's (both bases share the
+    azimuth about the line of centres, so only ``(u_r, u_theta)`` rotate).
+
+    Args:
+        centres: ``z`` of the sphere centres (one or two).
+        cos_theta, sin_theta: shape ``(n_quad,)``, the quadrature nodes on each sphere.
+        tests: shape ``(n_types, 3, n_degrees, n_quad)``, weighted test functions
+            (:func:`galerkin_test_functions`).
+        modes: ``modes(r, cos_theta, sin_theta)``: the velocity amplitudes of the modes about one centre,
+            shape ``(n_types, 3, n_degrees, n_points)`` (:func:`lamb_velocities`).
+
+    Returns:
+        shape ``(n_spheres * size, n_spheres * size)``, ``size = n_types * n_degrees``: rows (target sphere,
+        test type, degree), columns (source sphere, mode type, degree).
+    """
+    n_types, _, n_degrees, n_quad = tests.shape
+    size = n_types * n_degrees
+    n_spheres = len(centres)
+    matrix = np.zeros((n_spheres * size, n_spheres * size))
+    test_matrix = tests.transpose(0, 2, 1, 3).reshape(size, 3 * n_quad)
+    for s in range(n_spheres):  # target sphere (equations)
+        rho = sin_theta
+        for t in range(n_spheres):  # source sphere (multipoles)
+            z_rel = centres[s] - centres[t] + cos_theta
+            r = np.hypot(rho, z_rel)
+            cos_t, sin_t = z_rel / r, rho / r
+            vel = modes(r, cos_t, sin_t)  # (nt, 3, L, nq) in t's spherical basis
+            if s != t:
+                u_rho = vel[:, 0] * sin_t + vel[:, 1] * cos_t
+                u_z = vel[:, 0] * cos_t - vel[:, 1] * sin_t
+                vel = np.stack(
+                    [
+                        u_rho * sin_theta + u_z * cos_theta,
+                        u_rho * cos_theta - u_z * sin_theta,
+                        vel[:, 2],
+                    ],
+                    axis=1,
+                )
+            block = test_matrix @ vel.transpose(0, 2, 1, 3).reshape(size, 3 * n_quad).T
+            matrix[s * size : (s + 1) * size, t * size : (t + 1) * size] = block
+    return matrix
 
 
 @dataclass(frozen=True)
@@ -132,7 +233,35 @@ class RigidMotion:
     torque: FloatArray
 
 
-class TwoSphereStokes:
+class PairQuadrature:
+    """Geometry and surface quadrature of a Galerkin system about two equal spheres (or one).
+
+    Sphere 1 at the origin, sphere 2 at ``separation z_hat``; on each sphere ``n_quad`` Gauss--Legendre
+    nodes in ``cos(theta)``, ``theta`` increasing from the ``+z`` pole.
+
+    Args:
+        separation: centre distance ``d/a`` (> 2), or ``None`` for an isolated sphere.
+        order: truncation degree ``L``; default :func:`.truncation.truncation_order` (4 for one sphere).
+        n_quad: Gauss--Legendre points per sphere; default ``2 L + 40``.
+    """
+
+    def __init__(self, separation: float | None, order: int | None = None, n_quad: int | None = None):
+        if separation is not None and not separation > 2.0:
+            raise ValueError(f"separation must exceed 2 (touching spheres), got {separation}")
+        self.separation = separation
+        if order is None:
+            order = 4 if separation is None else truncation_order(separation)
+        self.order = int(order)
+        self.n_quad = 2 * self.order + 40 if n_quad is None else int(n_quad)
+        self.n_spheres = 1 if separation is None else 2
+        nodes, weights = np.polynomial.legendre.leggauss(self.n_quad)
+        self.cos_theta: FloatArray = nodes[::-1].copy()  # theta increasing from the +z pole
+        self.sin_theta: FloatArray = np.sqrt((1.0 - self.cos_theta) * (1.0 + self.cos_theta))
+        self.weights: FloatArray = weights[::-1].copy()
+        self.centres = [0.0] if separation is None else [0.0, float(separation)]
+
+
+class TwoSphereStokes(PairQuadrature):
     """Galerkin system for Lamb's solution about two equal spheres (or one, ``separation=None``).
 
     Args:
@@ -145,21 +274,9 @@ class TwoSphereStokes:
     def __init__(self, separation: float | None, m: int, order: int | None = None, n_quad: int | None = None):
         if m not in (0, 1):
             raise ValueError(f"m must be 0 or 1, got {m}")
-        if separation is not None and not separation > 2.0:
-            raise ValueError(f"separation must exceed 2 (touching spheres), got {separation}")
-        self.separation = separation
+        super().__init__(separation, order, n_quad)
         self.m = m
-        if order is None:
-            order = 4 if separation is None else truncation_order(separation)
-        self.order = int(order)
-        self.n_quad = 2 * self.order + 40 if n_quad is None else int(n_quad)
-        self.n_spheres = 1 if separation is None else 2
         self.n_types = 2 if m == 0 else 3
-        nodes, weights = np.polynomial.legendre.leggauss(self.n_quad)
-        self.cos_theta: FloatArray = nodes[::-1].copy()  # theta increasing from the +z pole
-        self.sin_theta: FloatArray = np.sqrt((1.0 - self.cos_theta) * (1.0 + self.cos_theta))
-        self.weights: FloatArray = weights[::-1].copy()
-        self.centres = [0.0] if separation is None else [0.0, float(separation)]
         self._tests = self._test_functions()
         self._build()
 
@@ -168,17 +285,7 @@ class TwoSphereStokes:
         """Weighted test functions, shape ``(n_types, 3, L, n_quad)`` (radial, grad_s, toroidal)."""
         table = legendre_table(self.order, self.m, self.cos_theta, self.sin_theta)
         value, d_theta, m_sin = table.value[1:], table.d_dtheta[1:], table.m_over_sin[1:]
-        tests = np.zeros((self.n_types, 3, self.order, self.n_quad))
-        tests[0, 0] = value
-        tests[1, 1] = d_theta
-        tests[1, 2] = -m_sin
-        if self.m == 1:
-            tests[2, 1] = -m_sin
-            tests[2, 2] = d_theta
-        # Normalise each test function (Galerkin rows of unit scale) and apply the weights.
-        norms = np.sqrt(np.einsum("tcnk,k->tn", tests**2, self.weights))
-        norms[norms == 0.0] = 1.0
-        return tests / norms[:, None, :, None] * self.weights
+        return galerkin_test_functions(value, d_theta, m_sin, self.weights, self.n_types)
 
     def project(self, surface_velocity: FloatArray) -> FloatArray:
         """Galerkin projection of surface velocity amplitudes given at the quadrature nodes.
@@ -199,30 +306,14 @@ class TwoSphereStokes:
 
     def _build(self) -> None:
         L, m, nt, ns = self.order, self.m, self.n_types, self.n_spheres
-        n_multipole = ns * nt * L
         n_eq = ns * nt * L
-        matrix = np.zeros((n_eq, n_multipole))
-        test_matrix = self._tests.transpose(0, 2, 1, 3).reshape(nt * L, 3 * self.n_quad)
-        for s in range(ns):  # target sphere (equations)
-            rho = self.sin_theta
-            for t in range(ns):  # source sphere (multipoles)
-                z_rel = self.centres[s] - self.centres[t] + self.cos_theta
-                r = np.hypot(rho, z_rel)
-                cos_t, sin_t = z_rel / r, rho / r
-                vel = lamb_velocities(m, L, r, cos_t, sin_t)  # (nt, 3, L, nq) in t's spherical basis
-                if s != t:
-                    u_rho = vel[:, 0] * sin_t + vel[:, 1] * cos_t
-                    u_z = vel[:, 0] * cos_t - vel[:, 1] * sin_t
-                    vel = np.stack(
-                        [
-                            u_rho * self.sin_theta + u_z * self.cos_theta,
-                            u_rho * self.cos_theta - u_z * self.sin_theta,
-                            vel[:, 2],
-                        ],
-                        axis=1,
-                    )
-                block = test_matrix @ vel.transpose(0, 2, 1, 3).reshape(nt * L, 3 * self.n_quad).T
-                matrix[s * nt * L : (s + 1) * nt * L, t * nt * L : (t + 1) * nt * L] = block
+        matrix = galerkin_matrix(
+            self.centres,
+            self.cos_theta,
+            self.sin_theta,
+            self._tests,
+            lambda r, cos_t, sin_t: lamb_velocities(m, L, r, cos_t, sin_t),
+        )
         rigid = [rigid_translation(m, self.cos_theta, self.sin_theta)]
         if m == 1:
             rigid.append(rigid_rotation(self.cos_theta, self.sin_theta))
@@ -275,21 +366,7 @@ class TwoSphereStokes:
         Returns:
             :class:`RigidMotion`.
         """
-        ns = self.n_spheres
-        lu, piv, scale, free = self._mobility_system()
-        rhs = np.zeros(self._matrix.shape[0]) if slip is None else self.project(slip)
-        forces_arr = np.zeros(ns) if forces is None else np.asarray(forces, dtype=float)
-        torques_arr = np.zeros(ns) if torques is None else np.asarray(torques, dtype=float)
-        stokeslet = forces_arr / (4.0 * np.pi) * (1.0 if self.m == 0 else -1.0)
-        rotlet = -torques_arr / (8.0 * np.pi)
-        known = np.concatenate([stokeslet, rotlet if self.m == 1 else np.zeros(0)])
-        rhs = rhs - self._matrix[:, self._singular_columns()] @ known
-        x = scipy.linalg.lu_solve((lu, piv), rhs) * scale
-        rigid = x[len(free) :].reshape(ns, self._n_rigid)
-        rotation = rigid[:, 1] if self.m == 1 else np.zeros(ns)
-        return RigidMotion(
-            rigid[:, 0].copy(), rotation.copy(), forces_arr, torques_arr if self.m == 1 else np.zeros(ns)
-        )
+        return self.solve_mobility_multipoles(slip, forces, torques)[0]
 
     def solve_resistance(self, velocities: FloatArray, rotations: FloatArray | None = None) -> RigidMotion:
         """Forces and torques needed to move the spheres rigidly (resistance problem, no slip).
@@ -301,22 +378,11 @@ class TwoSphereStokes:
         Returns:
             :class:`RigidMotion` with the forces/torques the spheres exert on the fluid.
         """
-        ns = self.n_spheres
-        u = np.asarray(velocities, dtype=float)
-        w = np.zeros(ns) if rotations is None else np.asarray(rotations, dtype=float)
-        if self._resistance_lu is None:
-            self._resistance_scale = 1.0 / np.abs(self._matrix).max(axis=0)
-            self._resistance_lu = scipy.linalg.lu_factor(self._matrix * self._resistance_scale)
-        known = np.stack([u, w], axis=1)[:, : self._n_rigid].reshape(-1)
-        rhs = self._rigid_columns @ known
-        x = scipy.linalg.lu_solve(self._resistance_lu, rhs) * self._resistance_scale
-        force = x[self._stokeslet_cols] * 4.0 * np.pi * (1.0 if self.m == 0 else -1.0)
-        torque = -8.0 * np.pi * x[self._rotlet_cols] if self.m == 1 else np.zeros(ns)
-        return RigidMotion(u, w if self.m == 1 else np.zeros(ns), force, torque)
+        return self.solve_resistance_multipoles(velocities, rotations)[0]
 
     # ----------------------------------------------------------------------------------------------
-    # Added for the stresslet (sim/dipolophoresis/two_sphere/stresslet.py): the same solves, returning
-    # the full multipole coefficients as well. The methods above are unchanged.
+    # The same solves, returning the full multipole coefficients as well (the stresslet,
+    # sim/dipolophoresis/two_sphere/stresslet.py, reads them); the methods above return their motion.
     def _unpack_multipoles(self, coefficients: FloatArray) -> FloatArray:
         """Coefficient vector (column order of the Galerkin matrix) -> shape ``(n_spheres, n_types, L)``."""
         return coefficients.reshape(self.n_spheres, self.n_types, self.order).copy()

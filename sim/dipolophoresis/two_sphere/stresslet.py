@@ -125,7 +125,14 @@ from sim.dipolophoresis.two_sphere.dep import maxwell_forces
 from sim.dipolophoresis.two_sphere.electric import ElectricSolution, solve_electric
 from sim.dipolophoresis.two_sphere.icep import icep_slips
 from sim.dipolophoresis.two_sphere.legendre import LegendreTable
-from sim.dipolophoresis.two_sphere.stokes import TwoSphereStokes
+from sim.dipolophoresis.two_sphere.stokes import (
+    PairQuadrature,
+    TwoSphereStokes,
+    galerkin_matrix,
+    galerkin_test_functions,
+    lamb_mode_velocities,
+)
+from sim.dipolophoresis.two_sphere.tabulation import split_table_text
 from sim.dipolophoresis.two_sphere.truncation import truncation_order
 
 FloatArray = NDArray[np.float64]
@@ -277,32 +284,19 @@ def lamb_velocities_m2(order: int, r: FloatArray, cos_theta: FloatArray, sin_the
     table = legendre_table_m2(order, cos_theta, sin_theta)
     n = np.arange(2, order + 1, dtype=float)[:, None]
     value, d_theta, m_sin = table.value[2:], table.d_dtheta[2:], table.m_over_sin[2:]
-    log_r = np.log(r)[None, :]
-    r_n2 = np.exp((-n - 2.0) * log_r)
-    r_n1 = np.exp((-n - 1.0) * log_r)
-    r_n0 = np.exp(-n * log_r)
-    alpha = -(n - 2.0) / (2.0 * n * (2.0 * n - 1.0))
-    beta = (n + 1.0) / (n * (2.0 * n - 1.0))
-    out = np.zeros((3, 3, order - 1, r.shape[0]))
-    out[0, 0] = -(n + 1.0) * r_n2 * value
-    out[0, 1] = r_n2 * d_theta
-    out[0, 2] = -r_n2 * m_sin
-    out[1, 0] = (beta - (n + 1.0) * alpha) * r_n0 * value
-    out[1, 1] = alpha * r_n0 * d_theta
-    out[1, 2] = -alpha * r_n0 * m_sin
-    out[2, 1] = r_n1 * m_sin
-    out[2, 2] = -r_n1 * d_theta
-    return out
+    return lamb_mode_velocities(n, value, d_theta, m_sin, r, 3)
 
 
-class QuadrupolarStokes:
+class QuadrupolarStokes(PairQuadrature):
     """Azimuthal order 2 of the two-sphere Stokes problem (slip- or boundary-velocity-driven).
 
     An ``m = 2`` surface velocity exerts no force or torque (rigid motions have ``m <= 1``), so the spheres
     do not move and the problem is a plain Dirichlet problem for the disturbance flow: Lamb's decaying
     modes of degrees ``2..L`` about both centres, Galerkin projection on the vector harmonics of order 2 on
     both surfaces, exactly as :class:`~sim.dipolophoresis.two_sphere.stokes.TwoSphereStokes` does for
-    ``m = 0, 1`` (same quadrature nodes for the same ``L`` and ``n_quad``).
+    ``m = 0, 1`` (same quadrature nodes for the same ``L`` and ``n_quad``; the quadrature, test functions
+    and matrix assembly are those of :mod:`.stokes`: :class:`~.stokes.PairQuadrature`,
+    :func:`~.stokes.galerkin_test_functions`, :func:`~.stokes.galerkin_matrix`).
 
     Args:
         separation: centre distance ``d/a`` (> 2), or ``None`` for an isolated sphere.
@@ -313,33 +307,14 @@ class QuadrupolarStokes:
     m = 2
 
     def __init__(self, separation: float | None, order: int | None = None, n_quad: int | None = None):
-        if separation is not None and not separation > 2.0:
-            raise ValueError(f"separation must exceed 2 (touching spheres), got {separation}")
-        self.separation = separation
-        if order is None:
-            order = 4 if separation is None else truncation_order(separation)
-        self.order = int(order)
-        self.n_quad = 2 * self.order + 40 if n_quad is None else int(n_quad)
-        self.n_spheres = 1 if separation is None else 2
-        nodes, weights = np.polynomial.legendre.leggauss(self.n_quad)
-        self.cos_theta: FloatArray = nodes[::-1].copy()
-        self.sin_theta: FloatArray = np.sqrt((1.0 - self.cos_theta) * (1.0 + self.cos_theta))
-        self.weights: FloatArray = weights[::-1].copy()
-        self.centres = [0.0] if separation is None else [0.0, float(separation)]
+        super().__init__(separation, order, n_quad)
         self._tests = self._test_functions()
         self._build()
 
     def _test_functions(self) -> FloatArray:
         table = legendre_table_m2(self.order, self.cos_theta, self.sin_theta)
         value, d_theta, m_sin = table.value[2:], table.d_dtheta[2:], table.m_over_sin[2:]
-        tests = np.zeros((3, 3, self.order - 1, self.n_quad))
-        tests[0, 0] = value
-        tests[1, 1] = d_theta
-        tests[1, 2] = -m_sin
-        tests[2, 1] = -m_sin
-        tests[2, 2] = d_theta
-        norms = np.sqrt(np.einsum("tcnk,k->tn", tests**2, self.weights))
-        return tests / norms[:, None, :, None] * self.weights
+        return galerkin_test_functions(value, d_theta, m_sin, self.weights, 3)
 
     def project(self, surface_velocity: FloatArray) -> FloatArray:
         """Galerkin projection of ``(n_spheres, 3, n_quad)`` amplitudes (of ``cos 2ph, cos 2ph, sin 2ph``)."""
@@ -347,30 +322,14 @@ class QuadrupolarStokes:
         return np.einsum("tcnk,sck->stn", self._tests, v).reshape(-1)
 
     def _build(self) -> None:
-        n_deg = self.order - 1
-        size = 3 * n_deg
-        matrix = np.zeros((self.n_spheres * size, self.n_spheres * size))
-        test_matrix = self._tests.transpose(0, 2, 1, 3).reshape(size, 3 * self.n_quad)
-        for s in range(self.n_spheres):
-            rho = self.sin_theta
-            for t in range(self.n_spheres):
-                z_rel = self.centres[s] - self.centres[t] + self.cos_theta
-                r = np.hypot(rho, z_rel)
-                cos_t, sin_t = z_rel / r, rho / r
-                vel = lamb_velocities_m2(self.order, r, cos_t, sin_t)
-                if s != t:
-                    u_rho = vel[:, 0] * sin_t + vel[:, 1] * cos_t
-                    u_z = vel[:, 0] * cos_t - vel[:, 1] * sin_t
-                    vel = np.stack(
-                        [
-                            u_rho * self.sin_theta + u_z * self.cos_theta,
-                            u_rho * self.cos_theta - u_z * self.sin_theta,
-                            vel[:, 2],
-                        ],
-                        axis=1,
-                    )
-                block = test_matrix @ vel.transpose(0, 2, 1, 3).reshape(size, 3 * self.n_quad).T
-                matrix[s * size : (s + 1) * size, t * size : (t + 1) * size] = block
+        order = self.order
+        matrix = galerkin_matrix(
+            self.centres,
+            self.cos_theta,
+            self.sin_theta,
+            self._tests,
+            lambda r, cos_t, sin_t: lamb_velocities_m2(order, r, cos_t, sin_t),
+        )
         self._scale = 1.0 / np.abs(matrix).max(axis=0)
         self._lu = scipy.linalg.lu_factor(matrix * self._scale)
 
@@ -619,12 +578,7 @@ def read_stress_table_text(text: str) -> StressTable:
     Raises:
         ValueError: if the column line differs from :data:`STRESS_COLUMNS`.
     """
-    lines = text.splitlines()
-    header = tuple(line for line in lines if line.startswith("#"))
-    rows = [line.split() for line in lines if line.strip() and not line.startswith("#")]
-    if tuple(rows[0]) != STRESS_COLUMNS:
-        raise ValueError(f"stress table: unexpected columns {rows[0]}, expected {list(STRESS_COLUMNS)}")
-    data = np.array(rows[1:], dtype=float)
+    header, data = split_table_text(text, STRESS_COLUMNS, "stress table")
     n_functions = len(STRESS_FUNCTION_NAMES)
     return StressTable(
         r=data[:, 0].copy(),

@@ -9,12 +9,18 @@ per node; nodes are uniform in ``s = ln(r - 2)``. Function values are in units o
 
 Below the first node (gap ``xi_0``) the loader uses the forms of :data:`NEAR_CONTACT_FORMS` fitted exactly
 through the nodes at ``xi_0``, ``~2 xi_0`` and ``~4 xi_0`` (:func:`fit_near_contact`).
+
+Also shared with the stress table (``tables/near_field_stress.txt``, read by
+:mod:`sim.dipolophoresis.near_field_stress`): the nodes (:func:`node_separations`), reading a packaged table
+(:func:`packaged_table_text`) and the parameters of the uniform ``ln(r - 2)`` grid that the loaders'
+evaluators take (:func:`log_gap_grid`).
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from importlib import resources
 from typing import Final
 
 import numpy as np
@@ -53,12 +59,7 @@ def read_table_text(text: str) -> NearFieldTable:
     Raises:
         ValueError: if the column line differs from :data:`COLUMNS`.
     """
-    lines = text.splitlines()
-    header = tuple(line for line in lines if line.startswith("#"))
-    rows = [line.split() for line in lines if line.strip() and not line.startswith("#")]
-    if tuple(rows[0]) != COLUMNS:
-        raise ValueError(f"near-field table: unexpected columns {rows[0]}, expected {list(COLUMNS)}")
-    data = np.array(rows[1:], dtype=float)
+    header, data = split_table_text(text, COLUMNS, "near-field table")
     return NearFieldTable(
         r=data[:, 0].copy(),
         values=np.ascontiguousarray(data[:, 1:7].T),
@@ -69,6 +70,30 @@ def read_table_text(text: str) -> NearFieldTable:
     )
 
 
+def split_table_text(
+    text: str, columns: tuple[str, ...], table_name: str
+) -> tuple[tuple[str, ...], FloatArray]:
+    """The comment lines and the numbers of a table file (also used for ``near_field_stress.txt``).
+
+    Args:
+        text: the file's text: comment lines starting with ``#``, one column line, one row per node.
+        columns: the expected column line.
+        table_name: named in the error.
+
+    Returns:
+        ``(header, data)``: the comment lines and shape ``(n_nodes, n_columns)``.
+
+    Raises:
+        ValueError: if the column line differs from ``columns``.
+    """
+    lines = text.splitlines()
+    header = tuple(line for line in lines if line.startswith("#"))
+    rows = [line.split() for line in lines if line.strip() and not line.startswith("#")]
+    if tuple(rows[0]) != columns:
+        raise ValueError(f"{table_name}: unexpected columns {rows[0]}, expected {list(columns)}")
+    return header, np.array(rows[1:], dtype=float)
+
+
 def node_separations(gap_min: float, r_max: float, spacing: float) -> FloatArray:
     """Nodes ``r = 2 + exp(s)`` with ``s`` uniform on ``[ln gap_min, ln(r_max - 2)]``, step <= ``spacing``."""
     s0, s1 = math.log(gap_min), math.log(r_max - 2.0)
@@ -76,6 +101,33 @@ def node_separations(gap_min: float, r_max: float, spacing: float) -> FloatArray
     nodes = 2.0 + np.exp(np.linspace(s0, s1, n_intervals + 1))
     nodes[0], nodes[-1] = 2.0 + gap_min, r_max  # exact end points
     return nodes
+
+
+def packaged_table_text(filename: str) -> str:
+    """Text of the table ``sim/dipolophoresis/tables/<filename>`` (package data)."""
+    return resources.files("sim.dipolophoresis").joinpath("tables", filename).read_text()
+
+
+def log_gap_grid(r: FloatArray, gap_floor: float, table_name: str) -> FloatArray:
+    """Parameters of the uniform grid in ``s = ln(r - 2)`` of a table's nodes, as the evaluators take them.
+
+    Args:
+        r: shape ``(n,)``, the nodes (increasing, uniform in ``ln(r - 2)``).
+        gap_floor: smallest gap ``r - 2`` the near-contact forms are evaluated at.
+        table_name: named in the error.
+
+    Returns:
+        shape ``(6,)``: ``s_0 = ln(xi_0)``, ``ds``, number of nodes, ``r_end`` (last node), ``xi_0`` (first
+        gap), ``gap_floor``.
+
+    Raises:
+        ValueError: if the nodes are not uniform in ``ln(r - 2)`` (to ``1e-9 ds``).
+    """
+    s = np.log(r - 2.0)
+    ds = (s[-1] - s[0]) / (s.shape[0] - 1)
+    if np.abs(np.diff(s) - ds).max() > 1e-9 * ds:
+        raise ValueError(f"{table_name}: nodes are not uniform in ln(r - 2)")
+    return np.array([s[0], ds, float(s.shape[0]), r[-1], r[0] - 2.0, gap_floor])
 
 
 def near_contact_points(r: FloatArray) -> NDArray[np.int64]:

@@ -1,0 +1,293 @@
+"""Evaluate trained policies against the open-loop baseline on held-out start states.
+
+    python -m agents.evaluate RUN_DIRS... --baseline OPEN_LOOP_DIR --out DIR [--split test] [--episodes N]
+        [--workers 2] [--scheduler ADDRESS]
+
+``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
+``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
+their training seeds its samples. Each run plays one deterministic episode from each of the first
+``--episodes`` start states of ``--split`` (by default the states of the baseline's points), with the
+observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun).
+
+Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
+interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
+over the second half of each episode, the field energy ``<1/Mn>`` over that half and the return; for
+the baselines (no field and the best constant field for the reward) the same over start states. Plots:
+``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
+fields' front with the policies on it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import pickle
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from agents.open_loop import plot_pareto, read_json, summarise_points, write_json
+from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
+from agents.tasks import run_tasks
+
+
+def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
+    """Group run folders into policies (see the module docstring); name -> run folders."""
+    groups: dict[str, list[Path]] = {}
+    for path in paths:
+        if (path / "model.zip").exists():
+            key, runs = path.parent, [path]
+        else:
+            key, runs = path, sorted(p.parent for p in path.glob("*/model.zip"))
+        if not runs:
+            raise SystemExit(f"{path}: no model.zip in it or in its subfolders")
+        config = yaml.safe_load((runs[0] / "config.yml").read_text())
+        name = f"{config['algo']} ({key.name or key})"
+        groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
+    return groups
+
+
+def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
+    """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
+    import torch
+    from stable_baselines3 import PPO, SAC
+
+    torch.set_num_threads(1)
+    path = Path(payload["path"])
+    if path.exists():
+        old = read_json(path)
+        if old.get("identity") == payload["identity"]:
+            return dict(old)
+    run = Path(payload["run"])
+    config = yaml.safe_load((run / "config.yml").read_text())
+    model = (PPO if config["algo"] == "ppo" else SAC).load(str(run / "model.zip"), device="cpu")
+    normaliser = None
+    if (run / "vecnormalize.pkl").exists():
+        with open(run / "vecnormalize.pkl", "rb") as handle:
+            normaliser = pickle.load(handle)
+        normaliser.training = False
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        x = normaliser.normalize_obs(obs) if normaliser is not None else obs
+        action, _ = model.predict(x, deterministic=True)
+        return np.asarray(action)
+
+    env = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
+    episodes = []
+    for index in payload["indices"]:
+        trace = run_episode(env, policy, payload["split"], index)
+        episodes.append({**trace.summary(), "trace": trace.to_dict()})
+    key = env.unwrapped.library().key  # type: ignore[attr-defined]
+    env.close()
+    record = {
+        "identity": payload["identity"],
+        "run": str(run),
+        "seed": config["seed"],
+        "algo": config["algo"],
+        "env_id": config["env_id"],
+        "library_key": key,
+        "episodes": episodes,
+    }
+    write_json(path, record)
+    return record
+
+
+def _stats(values: list[float], iqm: bool) -> dict[str, float]:
+    mean, low, high = confidence_interval(values)
+    return {
+        "mean": mean,
+        "ci_low": low,
+        "ci_high": high,
+        "iqm": interquartile_mean(values) if iqm else math.nan,
+    }
+
+
+def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per-seed averages over episodes, then mean / 95% CI / IQM (>= 5 seeds) over seeds."""
+    per_seed = {
+        metric: [float(np.nanmean([e[key] for e in r["episodes"]])) for r in records]
+        for metric, key in (
+            ("eta", "eta_second_half"),
+            ("energy", "energy_second_half"),
+            ("return", "return"),
+        )
+    }
+    iqm = len(records) >= 5
+    return {
+        "name": name,
+        "samples": f"{len(records)} training seeds",
+        "failures": sum(bool(e["failed"]) for r in records for e in r["episodes"]),
+        **{metric: _stats(values, iqm) for metric, values in per_seed.items()},
+        "per_seed": per_seed,
+    }
+
+
+def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) -> dict[str, Any]:
+    """A constant field: mean and 95% CI over the start states."""
+    episodes = [e for e in record["episodes"] if e["index"] in indices]
+    return {
+        "name": name,
+        "samples": f"{len(episodes)} start states",
+        "failures": sum(bool(e["failed"]) for e in episodes),
+        **{
+            metric: _stats([e[key] for e in episodes], False)
+            for metric, key in (
+                ("eta", "eta_second_half"),
+                ("energy", "energy_second_half"),
+                ("return", "return"),
+            )
+        },
+    }
+
+
+def format_table(rows: list[dict[str, Any]]) -> str:
+    def cell(s: dict[str, float], digits: int = 3) -> str:
+        if math.isnan(s["ci_low"]):
+            return f"{s['mean']:.{digits}f}"
+        return f"{s['mean']:.{digits}f} [{s['ci_low']:.{digits}f}, {s['ci_high']:.{digits}f}]"
+
+    lines = [
+        "| policy | samples | eta_r, 2nd half: mean [95% CI] | IQM | field energy <1/Mn> | return "
+        "| IQM return | failures |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        iqm_eta = "" if math.isnan(r["eta"]["iqm"]) else f"{r['eta']['iqm']:.3f}"
+        iqm_ret = "" if math.isnan(r["return"]["iqm"]) else f"{r['return']['iqm']:.2f}"
+        lines.append(
+            f"| {r['name']} | {r['samples']} | {cell(r['eta'])} | {iqm_eta} | {cell(r['energy'])} | "
+            f"{cell(r['return'], 2)} | {iqm_ret} | {r['failures']} |"
+        )
+    return "\n".join(lines)
+
+
+def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
+    """Field (Mn; off drawn above the top) and eta_r against strain for one start state."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax_mn, ax_eta) = plt.subplots(2, 1, figsize=(6.5, 5), sharex=True)
+    for name, trace in curves:
+        strain = np.asarray(trace["strain"])
+        mn = np.array([float(m) for m in trace["mason_number"]])
+        shown = np.where(np.isfinite(mn), mn, 100.0)
+        ax_mn.step(strain, shown, where="pre", label=name)
+        ax_eta.plot(strain, trace["eta_r"], "-", label=name)
+    ax_mn.set_yscale("log")
+    ax_mn.set_ylabel("Mn (100 = off)")
+    ax_eta.set_ylabel("eta_r (interval average)")
+    ax_eta.set_xlabel("strain since the episode start")
+    ax_mn.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.evaluate",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("runs", nargs="+", type=Path, help="run folders or folders of them")
+    parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
+    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
+    parser.add_argument("--episodes", type=int, default=None, help="first N states (default: the baseline's)")
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--scheduler", default=None)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    args = build_parser().parse_args(argv)
+    pareto = read_json(args.baseline / "pareto.json")
+    points = [read_json(p) for p in sorted((args.baseline / "points").glob("*.json"))]
+    split = args.split or pareto["split"]
+    baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
+    indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
+    groups = find_runs(args.runs)
+    (args.out / "runs").mkdir(parents=True, exist_ok=True)
+    (args.out / "command.txt").write_text(
+        " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
+    )
+    payloads, owners = [], []
+    for name, runs in groups.items():
+        for run in runs:
+            label = f"{run.parent.name}_{run.name}".replace("/", "_")
+            payloads.append(
+                {
+                    "run": str(run),
+                    "split": split,
+                    "indices": indices,
+                    "path": str(args.out / "runs" / f"{label}.json"),
+                    "identity": {
+                        "run": str(run.resolve()),
+                        "split": split,
+                        "indices": indices,
+                        "model_mtime": (run / "model.zip").stat().st_mtime_ns,
+                    },
+                }
+            )
+            owners.append(name)
+    records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
+    keys = {r["library_key"] for r in records} | {pareto.get("library_key")}
+    if len(keys) > 1:
+        print(f"warning: start-state libraries differ between runs and baseline: {sorted(map(str, keys))}")
+    rows = []
+    by_label = {p["label"]: p for p in points}
+    best = read_json(args.baseline / "best_constant.json")
+    baselines = [
+        ("no field", by_label.get("off")),
+        (f"best constant ({best['label']})", by_label.get(best["label"])),
+    ]
+    for name, record in baselines:
+        if record is not None:
+            rows.append(aggregate_baseline(name, record, indices))
+    for name in groups:
+        rows.append(aggregate_policy(name, [r for r, o in zip(records, owners, strict=True) if o == name]))
+    table = format_table(rows)
+    header = (
+        f"Environment {records[0]['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
+        "averages over the second half of each episode (energy in eta gammadot per unit strain); intervals "
+        "are 95% Student-t over training seeds (policies) or start states (constant fields).\n\n"
+    )
+    (args.out / "table.md").write_text(header + table + "\n")
+    write_json(args.out / "results.json", {"split": split, "indices": indices, "rows": rows})
+    policies = [
+        {
+            "name": r["name"],
+            "eta": r["eta"]["mean"],
+            "eta_ci_low": r["eta"]["ci_low"],
+            "eta_ci_high": r["eta"]["ci_high"],
+            "energy": r["energy"]["mean"],
+        }
+        for r in rows[len([b for b in baselines if b[1] is not None]) :]
+    ]
+    for p in policies:
+        for k in ("eta_ci_low", "eta_ci_high"):
+            if math.isnan(p[k]):
+                p[k] = p["eta"]
+    plot_pareto(summarise_points(points), args.out / "pareto.png", policies)
+    first = indices[0]
+    curves = []
+    for name, record in baselines:
+        if record is not None:
+            curves += [(name, e["trace"]) for e in record["episodes"] if e["index"] == first]
+    for name in groups:
+        record = next(r for r, o in zip(records, owners, strict=True) if o == name)
+        curves += [
+            (f"{name} seed {record['seed']}", e["trace"]) for e in record["episodes"] if e["index"] == first
+        ]
+    plot_traces(curves, args.out / "traces.png")
+    print(header + table)
+    return {"rows": rows}
+
+
+if __name__ == "__main__":
+    main()

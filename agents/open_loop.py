@@ -1,0 +1,331 @@
+"""Open-loop baseline: constant fields through the same evaluation path as the learned policies.
+
+    python -m agents.open_loop --env dipenv/FieldMagnitude-v0 --out runs/open_loop
+        [--mason off,20,5,2,1,0.5,0.2,0.1,0.05] [--directions y,x,z,xy] [--split test] [--episodes N]
+        [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
+
+Every point (a constant Mason number, and a direction for the vector env) runs one episode from each
+of the first ``--episodes`` start states of ``--split`` and writes ``DIR/points/<label>.json`` (the
+episodes' metrics and traces); a rerun skips the points already written for the same env, arguments
+and start-state library, so the command is resumable. Then it writes ``pareto.csv`` / ``pareto.json``
+(per point: mean ``eta_r`` over the second half of the episodes with its 95% interval over start
+states, field energy ``<1/Mn>``, return, and whether the point is on the Pareto front of low ``eta_r``
+and low energy), ``best_constant.json`` (the point with the highest mean return: the best constant
+policy for the reward in use, chosen on the same start states, which favours the baseline) and
+``pareto.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.rollout import confidence_interval, constant_policy, make_env, run_episode
+from agents.tasks import run_tasks
+
+DIRECTIONS = {"y": (0.0, 1.0, 0.0), "x": (1.0, 0.0, 0.0), "z": (0.0, 0.0, 1.0), "xy": (1.0, 1.0, 0.0)}
+"""Named directions for ``--directions`` (``xy``: 45 degrees in the shear plane)."""
+
+DEFAULT_MASON = ("off", 20.0, 5.0, 2.0, 1.0, 0.5, 0.2, 0.1, 0.05)
+
+
+def point_label(mason: float, direction: str | None) -> str:
+    base = "off" if math.isinf(mason) else f"Mn{mason:g}"
+    return base if direction is None else f"{base}_e{direction}"
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value)}")
+
+
+def write_json(path: Path, data: Any) -> None:
+    """Write ``data`` as JSON (non-finite floats as strings), atomically."""
+    text = json.dumps(_finite(data), indent=1, default=_json_default)
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
+
+
+def read_json(path: Path) -> Any:
+    def floats(obj: Any) -> Any:
+        if isinstance(obj, str) and obj in ("inf", "-inf", "nan"):
+            return float(obj)
+        if isinstance(obj, dict):
+            return {k: floats(v) for k, v in obj.items()}
+        if isinstance(obj, list):
+            return [floats(v) for v in obj]
+        return obj
+
+    return floats(json.loads(path.read_text()))
+
+
+def run_point(payload: dict[str, Any]) -> dict[str, Any]:
+    """One constant field over the start states (a task); returns and writes the point's record."""
+    env = make_env(payload["env_id"], payload["env_kwargs"])
+    unwrapped: Any = env.unwrapped
+    mapping = unwrapped.mapping
+    action = [mapping.action_for(payload["mason_number"])]
+    if payload["direction"] is not None:
+        from dipenv.actions import action_from_direction
+
+        action += list(action_from_direction(DIRECTIONS[payload["direction"]]))
+    key = unwrapped.library().key
+    path = Path(payload["path"])
+    if path.exists():
+        old = read_json(path)
+        if old.get("identity") == _identity(payload, key):
+            return old
+    episodes = []
+    for index in range(payload["episodes"]):
+        trace = run_episode(env, constant_policy(action), payload["split"], index)
+        episodes.append({**trace.summary(), "trace": trace.to_dict()})
+    env.close()
+    record = {
+        "identity": _identity(payload, key),
+        "label": payload["label"],
+        "mason_number": payload["mason_number"],
+        "direction": payload["direction"],
+        "action": action,
+        "episodes": episodes,
+    }
+    write_json(path, record)
+    return record
+
+
+def _identity(payload: dict[str, Any], library_key: str) -> dict[str, Any]:
+    """What a point's result depends on (a stored point is reused only if this matches)."""
+    return _finite(
+        {
+            "env_id": payload["env_id"],
+            "env_kwargs": payload["env_kwargs"],
+            "split": payload["split"],
+            "episodes": payload["episodes"],
+            "mason_number": payload["mason_number"],
+            "direction": payload["direction"],
+            "library_key": library_key,
+        }
+    )
+
+
+def summarise_points(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per point: means and 95% intervals over start states, and the Pareto flag (eta_r, energy)."""
+    rows = []
+    for record in records:
+        eps = record["episodes"]
+        eta, eta_lo, eta_hi = confidence_interval([e["eta_second_half"] for e in eps])
+        energy = float(np.nanmean([e["energy_second_half"] for e in eps]))
+        ret, ret_lo, ret_hi = confidence_interval([e["return"] for e in eps])
+        rows.append(
+            {
+                "label": record["label"],
+                "mason_number": record["mason_number"],
+                "direction": record["direction"],
+                "action": record["action"],
+                "eta_second_half": eta,
+                "eta_ci_low": eta_lo,
+                "eta_ci_high": eta_hi,
+                "energy": energy,
+                "return": ret,
+                "return_ci_low": ret_lo,
+                "return_ci_high": ret_hi,
+                "episodes": len(eps),
+                "failures": sum(bool(e["failed"]) for e in eps),
+            }
+        )
+    for row in rows:
+        row["pareto"] = not any(
+            o["eta_second_half"] <= row["eta_second_half"]
+            and o["energy"] <= row["energy"]
+            and (o["eta_second_half"] < row["eta_second_half"] or o["energy"] < row["energy"])
+            for o in rows
+        )
+    return rows
+
+
+def plot_pareto(rows: list[dict[str, Any]], path: Path, policies: list[dict[str, Any]] | None = None) -> None:
+    """eta_r (second half) against field energy; the front joined; policies with their intervals."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    energy_floor = min([r["energy"] for r in rows if r["energy"] > 0] + [1e-2]) / 3
+    x = [max(r["energy"], energy_floor) for r in rows]
+    y = [r["eta_second_half"] for r in rows]
+    err = [
+        [r["eta_second_half"] - r["eta_ci_low"] if math.isfinite(r["eta_ci_low"]) else 0 for r in rows],
+        [r["eta_ci_high"] - r["eta_second_half"] if math.isfinite(r["eta_ci_high"]) else 0 for r in rows],
+    ]
+    ax.errorbar(x, y, yerr=err, fmt="o", color="0.5", label="constant field", zorder=2)
+    front = sorted((xi, yi) for xi, yi, r in zip(x, y, rows, strict=True) if r["pareto"])
+    if front:
+        ax.plot(*zip(*front, strict=True), "-", color="0.2", label="Pareto front (constant)", zorder=1)
+    for xi, yi, r in zip(x, y, rows, strict=True):
+        ax.annotate(r["label"], (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    for policy in policies or []:
+        ax.errorbar(
+            [max(policy["energy"], energy_floor)],
+            [policy["eta"]],
+            yerr=[[policy["eta"] - policy["eta_ci_low"]], [policy["eta_ci_high"] - policy["eta"]]],
+            fmt="s",
+            ms=7,
+            label=policy["name"],
+            zorder=3,
+        )
+    ax.set_xscale("log")
+    ax.set_xlabel(f"field energy <eps E0^2> = <1/Mn> (eta gammadot; off plotted at {energy_floor:.2g})")
+    ax.set_ylabel("eta_r, second half of the episode")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def parse_mason(text: str) -> list[float]:
+    values = []
+    for part in text.split(","):
+        part = part.strip()
+        values.append(math.inf if part in ("off", "inf") else float(part))
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m agents.open_loop",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--env", required=True, help="environment id, e.g. dipenv/FieldMagnitude-v0")
+    parser.add_argument("--out", required=True, type=Path, help="output folder (created; reruns resume)")
+    parser.add_argument(
+        "--mason", default=None, help="comma-separated Mason numbers or 'off' (default: a grid)"
+    )
+    parser.add_argument("--directions", default="y,x,z,xy", help="vector env only: named directions")
+    parser.add_argument("--split", default="test", choices=("train", "validation", "test"))
+    parser.add_argument("--episodes", type=int, default=None, help="start states (default: the whole split)")
+    parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
+    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
+    parser.add_argument("--scheduler", default=None, help="Dask scheduler address (instead of local workers)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    args = build_parser().parse_args(argv)
+    env_kwargs = json.loads(args.env_kwargs)
+    env = make_env(args.env, {**env_kwargs, "progress": True})
+    unwrapped: Any = env.unwrapped
+    mapping = unwrapped.mapping
+    episodes = args.episodes or unwrapped.split_sizes[args.split]
+    if not 1 <= episodes <= unwrapped.split_sizes[args.split]:
+        raise SystemExit(
+            f"--episodes must be in [1, {unwrapped.split_sizes[args.split]}] for --split {args.split}"
+        )
+    if args.mason is None:
+        masons = [m for m in parse_mason(",".join(str(v) for v in DEFAULT_MASON))]
+        masons = [m for m in masons if math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max]
+        masons += [mapping.mason_min, mapping.mason_max]
+        masons = sorted(set(masons), reverse=True, key=lambda m: m)
+    else:
+        masons = parse_mason(args.mason)
+    for m in masons:
+        if not (math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max):
+            raise SystemExit(
+                f"--mason {m:g} is outside the env's range [{mapping.mason_min}, {mapping.mason_max}]"
+            )
+    directions: list[str | None] = [None]
+    if unwrapped.vector_field:
+        directions = [d.strip() for d in args.directions.split(",")]
+        for d in directions:
+            if d not in DIRECTIONS:
+                raise SystemExit(f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
+    unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
+    env.close()
+    (args.out / "points").mkdir(parents=True, exist_ok=True)
+    (args.out / "command.txt").write_text(
+        " ".join([sys.executable, "-m", "agents.open_loop", *sys.argv[1:]]) + "\n"
+    )
+    payloads = []
+    for m in masons:
+        for d in directions if not math.isinf(m) else directions[:1]:
+            label = point_label(m, d)
+            payloads.append(
+                {
+                    "env_id": args.env,
+                    "env_kwargs": {**env_kwargs, "progress": False},
+                    "split": args.split,
+                    "episodes": episodes,
+                    "mason_number": m,
+                    "direction": d,
+                    "label": label,
+                    "path": str(args.out / "points" / f"{label}.json"),
+                }
+            )
+    records = run_tasks(run_point, payloads, workers=args.workers, scheduler=args.scheduler)
+    rows = summarise_points(records)
+    best = max(rows, key=lambda r: r["return"])
+    write_json(
+        args.out / "pareto.json",
+        {
+            "env_id": args.env,
+            "env_kwargs": env_kwargs,
+            "split": args.split,
+            "library_key": records[0]["identity"]["library_key"],
+            "points": rows,
+        },
+    )
+    write_json(args.out / "best_constant.json", best)
+    columns = [
+        "label",
+        "mason_number",
+        "direction",
+        "eta_second_half",
+        "eta_ci_low",
+        "eta_ci_high",
+        "energy",
+        "return",
+        "return_ci_low",
+        "return_ci_high",
+        "episodes",
+        "failures",
+        "pareto",
+    ]
+    lines = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in rows]
+    (args.out / "pareto.csv").write_text("\n".join(lines) + "\n")
+    plot_pareto(rows, args.out / "pareto.png")
+    print(
+        f"| point | eta_r (2nd half) | 95% CI | energy <1/Mn> | return | Pareto |  "
+        f"({episodes} {args.split} states)"
+    )
+    print("|---|---|---|---|---|---|")
+    for r in rows:
+        print(
+            f"| {r['label']} | {r['eta_second_half']:.3f} | [{r['eta_ci_low']:.3f}, {r['eta_ci_high']:.3f}] "
+            f"| {r['energy']:.3f} | {r['return']:.2f} | {'yes' if r['pareto'] else ''} |"
+        )
+    print(f"best constant for the reward: {best['label']} (return {best['return']:.2f})")
+    return rows
+
+
+if __name__ == "__main__":
+    main()

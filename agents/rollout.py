@@ -1,0 +1,127 @@
+"""One evaluation path for learned and open-loop policies: make the env, run an episode, summarise it.
+
+Episode metrics (all control intervals have the same strain, so plain means over steps are time
+averages):
+
+* ``eta_second_half``: time-averaged ``eta_r`` over the second half of the episode (steady state);
+* ``energy_second_half``: time-averaged field energy ``<eps E0^2> = <1/Mn>`` over the same half (units
+  eta gammadot; the field energy per unit volume per unit strain);
+* ``energy_mean``: the same over the whole episode; ``return``: the undiscounted sum of rewards.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+Policy = Callable[[np.ndarray], np.ndarray]
+
+
+def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
+    """``gym.make(env_id, **env_kwargs)`` after registering the dipenv ids (picklable with a partial)."""
+    import dipenv  # noqa: F401  (registers the ids)
+
+    return gym.make(env_id, **(env_kwargs or {}))
+
+
+def make_monitored_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
+    """:func:`make_env` wrapped in SB3's ``Monitor`` (episode returns and lengths for evaluation)."""
+    from stable_baselines3.common.monitor import Monitor
+
+    return Monitor(make_env(env_id, env_kwargs))
+
+
+@dataclass
+class EpisodeTrace:
+    """Per-step record of one episode (strain since its start, at the end of each interval)."""
+
+    split: str
+    index: int
+    strain: list[float] = field(default_factory=list)
+    action: list[list[float]] = field(default_factory=list)
+    mason_number: list[float] = field(default_factory=list)
+    field_energy: list[float] = field(default_factory=list)
+    eta_r: list[float] = field(default_factory=list)
+    n1: list[float] = field(default_factory=list)
+    n2: list[float] = field(default_factory=list)
+    reward: list[float] = field(default_factory=list)
+    failed: bool = False
+    library_key: str = ""
+
+    def summary(self) -> dict[str, Any]:
+        """The episode metrics of the module docstring (NaN where the episode failed first)."""
+        n = len(self.eta_r)
+        half = slice(n // 2, n)
+        ok = n > 0 and not self.failed
+        return {
+            "split": self.split,
+            "index": self.index,
+            "steps": n,
+            "failed": self.failed,
+            "eta_second_half": float(np.mean(self.eta_r[half])) if ok else math.nan,
+            "energy_second_half": float(np.mean(self.field_energy[half])) if ok else math.nan,
+            "energy_mean": float(np.mean(self.field_energy)) if ok else math.nan,
+            "return": float(np.sum(self.reward)),
+        }
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["mason_number"] = [m if math.isfinite(m) else "inf" for m in self.mason_number]
+        return out
+
+
+def run_episode(env: gym.Env, policy: Policy, split: str, index: int, seed: int = 0) -> EpisodeTrace:
+    """Run ``policy`` from start state ``index`` of ``split`` until the episode ends."""
+    obs, info = env.reset(seed=seed, options={"split": split, "index": index})
+    trace = EpisodeTrace(split=split, index=index, library_key=str(info.get("library_key", "")))
+    done = False
+    while not done:
+        action = np.asarray(policy(obs), dtype=np.float32)
+        obs, reward, terminated, truncated, info = env.step(action)
+        done = terminated or truncated
+        if info.get("simulation_failed"):
+            trace.failed = True
+            trace.reward.append(float(reward))
+            break
+        trace.strain.append(float(info["strain"]))
+        trace.action.append([float(a) for a in action.reshape(-1)])
+        trace.mason_number.append(float(info["mason_number"]))
+        trace.field_energy.append(float(info["field_energy"]))
+        trace.eta_r.append(float(info["eta_r"]))
+        trace.n1.append(float(info["n1"]))
+        trace.n2.append(float(info["n2"]))
+        trace.reward.append(float(reward))
+    return trace
+
+
+def constant_policy(action: Sequence[float]) -> Policy:
+    """A policy that always returns ``action``."""
+    fixed = np.asarray(action, dtype=np.float32)
+    return lambda obs: fixed
+
+
+def confidence_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
+    """Mean and Student-t ``level`` interval of the mean (NaN half-width for fewer than 2 finite values)."""
+    from scipy import stats
+
+    x = np.asarray([v for v in values if math.isfinite(v)], dtype=float)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    mean = float(x.mean())
+    if x.size < 2:
+        return mean, math.nan, math.nan
+    half = float(stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
+    return mean, mean - half, mean + half
+
+
+def interquartile_mean(values: Sequence[float]) -> float:
+    """Mean of the middle 50% (25% trimmed from each end; Agarwal et al. 2021's IQM)."""
+    from scipy import stats
+
+    x = np.asarray([v for v in values if math.isfinite(v)], dtype=float)
+    return float(stats.trim_mean(x, 0.25)) if x.size else math.nan

@@ -1,0 +1,89 @@
+"""Reward: hold the interval-averaged viscosity at a low target with as little field energy as possible.
+
+``r = -|eta_r - eta_target| - w_E <eps E0^2>``, both terms in stress units ``eta gammadot``:
+``eta_r`` is the time average of the relative viscosity over the control interval and
+``<eps E0^2> = <1/Mn>`` the time-averaged field energy density over it, which is the field energy per
+unit volume spent per unit strain (``gammadot = 1``; in the paper's scaling the dipolophoretic stress
+is ``eps E0^2 = eta gammadot / Mn``). A simulator failure ends the episode with
+``-failure_penalty`` for the failing step and each step the episode had left, so that failing never
+pays (the per-step reward at the defaults stays above about -30).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+DEFAULT_ENERGY_WEIGHT = 1.0
+"""``w_E``: one unit of viscosity (eta gammadot) is worth one unit of field energy density per strain."""
+
+DEFAULT_FAILURE_PENALTY = 50.0
+"""Reward of a failed step and of each step an episode loses by failing (units eta gammadot)."""
+
+DEFAULT_TARGET_VISCOSITY = {0.45: 7.0}
+"""Default targets by volume fraction: the open-loop ``eta_r`` of the strongest constant field on the
+low-viscosity plateau (Mn <= 0.5, paper Fig. 3) at N = 64, from
+``python -m agents.open_loop --env dipenv/FieldMagnitude-v0`` (README: open-loop results). For other
+volume fractions pass ``target_viscosity`` explicitly."""
+
+
+def default_target_viscosity(volume_fraction: float) -> float:
+    """The tabulated default target for ``volume_fraction`` (within 1e-6).
+
+    Raises:
+        ValueError: if no default is tabulated for it (name the ones that are).
+    """
+    for phi, target in DEFAULT_TARGET_VISCOSITY.items():
+        if abs(phi - volume_fraction) < 1e-6:
+            return target
+    raise ValueError(
+        f"no default target_viscosity for volume_fraction={volume_fraction}; tabulated: "
+        f"{sorted(DEFAULT_TARGET_VISCOSITY)}; pass target_viscosity explicitly"
+    )
+
+
+@dataclass(frozen=True)
+class ViscosityTargetReward:
+    """``r = -|eta_r - eta_target| - w_E <eps E0^2>`` (see the module docstring).
+
+    Attributes:
+        target_viscosity: ``eta_target`` (units eta gammadot), finite.
+        energy_weight: ``w_E`` (dimensionless), >= 0.
+        failure_penalty: penalty per failed or lost step (units eta gammadot), >= 0.
+    """
+
+    target_viscosity: float
+    energy_weight: float = DEFAULT_ENERGY_WEIGHT
+    failure_penalty: float = DEFAULT_FAILURE_PENALTY
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.target_viscosity):
+            raise ValueError(f"target_viscosity must be finite, got {self.target_viscosity!r}")
+        if not (math.isfinite(self.energy_weight) and self.energy_weight >= 0.0):
+            raise ValueError(f"energy_weight must be finite and >= 0, got {self.energy_weight!r}")
+        if not (math.isfinite(self.failure_penalty) and self.failure_penalty >= 0.0):
+            raise ValueError(f"failure_penalty must be finite and >= 0, got {self.failure_penalty!r}")
+
+    def __call__(self, relative_viscosity: float, field_energy: float) -> tuple[float, dict[str, float]]:
+        """Reward of one interval and its terms (``reward_viscosity``, ``reward_energy``).
+
+        Args:
+            relative_viscosity: interval-averaged ``eta_r``.
+            field_energy: interval-averaged ``<eps E0^2> = <1/Mn>`` (units eta gammadot).
+        """
+        viscosity_term = -abs(relative_viscosity - self.target_viscosity)
+        energy_term = -self.energy_weight * field_energy
+        return float(viscosity_term + energy_term), {
+            "reward_viscosity": float(viscosity_term),
+            "reward_energy": float(energy_term),
+            "reward_failure": 0.0,
+        }
+
+    def failure(self, steps_lost: int) -> tuple[float, dict[str, float]]:
+        """Reward of a failed step when ``steps_lost`` further steps of the episode are lost."""
+        penalty = -self.failure_penalty * (1 + max(0, steps_lost))
+        return float(penalty), {
+            "reward_viscosity": 0.0,
+            "reward_energy": 0.0,
+            "reward_failure": float(penalty),
+        }

@@ -1,0 +1,246 @@
+"""Library of pre-sheared start states, generated on first use and cached on disk.
+
+A start state is a random packing (seed ``s``) sheared without field for ``preshear_strain`` strains
+(the contact network and the fabric reach their steady state after about 2–3 strains: see the README's
+relaxation measurement). The library keeps, per state, the full :class:`sim.SimulationState` (so that a
+run continues it bit for bit) and the per-step ``eta_r``, ``N1``, ``N2`` and step sizes of the last
+``tail_strain`` strains, from which the first observation's interval averages are taken.
+
+Splits are disjoint ranges of packing seeds: ``train`` uses seeds ``0, 1, ...``, ``validation``
+``100000, ...`` and ``test`` ``200000, ...``, so enlarging a split keeps its existing states.
+
+Cache: ``$DIPENV_CACHE_DIR`` or ``$XDG_CACHE_HOME/dipenv`` (default ``~/.cache/dipenv``), then
+``states/<key>/``, where ``key`` hashes every parameter that shapes the states: the simulation config
+(all fields but the seed and the run length), the pre-shear and tail strains, the library format version
+and the simulator version ``sim.__version__`` (bump it when the dynamics change). A digest of the
+simulator's sources is recorded in ``library.json`` for provenance but is not part of the key: keying on
+it would regenerate the states, and invalidate every open-loop result keyed on them, at each edit of any
+file in ``sim/``. Files are written atomically (temporary name, then rename), so concurrent workers at
+worst repeat work.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+import json
+import math
+import os
+import tempfile
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+import sim
+
+LIBRARY_VERSION = 1
+"""Bump when the file layout or the generation protocol changes."""
+
+SPLITS = ("train", "validation", "test")
+SPLIT_SEED_OFFSET = {"train": 0, "validation": 100_000, "test": 200_000}
+"""First packing seed of each split; seeds of a split are ``offset + index``."""
+
+DEFAULT_SPLIT_SIZES = {"train": 64, "validation": 8, "test": 16}
+
+
+def cache_root() -> Path:
+    """``$DIPENV_CACHE_DIR``, else ``$XDG_CACHE_HOME/dipenv``, else ``~/.cache/dipenv``."""
+    if os.environ.get("DIPENV_CACHE_DIR"):
+        return Path(os.environ["DIPENV_CACHE_DIR"])
+    return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dipenv"
+
+
+@functools.lru_cache(maxsize=1)
+def simulator_source_digest() -> str:
+    """SHA-256 (16 hex digits) of the simulator package's ``.py`` files and data tables."""
+    spec = importlib.util.find_spec("sim")
+    if spec is None or not spec.submodule_search_locations:
+        return "unknown"
+    root = Path(next(iter(spec.submodule_search_locations)))
+    digest = hashlib.sha256()
+    for path in sorted(list(root.rglob("*.py")) + list(root.glob("*/tables/*.txt"))):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class StartState:
+    """One library entry: the state and the per-step rheology of the pre-shear's last strains.
+
+    Attributes:
+        state: the simulator state at the end of the pre-shear (field off).
+        seed: packing seed.
+        split: ``train``, ``validation`` or ``test``.
+        index: index within the split.
+        tail_strain: (S,) clock of each tail sample.
+        tail_time_step: (S,) step after each sample (time-average weights).
+        tail_rheology: (S, 3) ``eta_r``, ``N1``, ``N2`` per sample (units eta gammadot).
+    """
+
+    state: sim.SimulationState
+    seed: int
+    split: str
+    index: int
+    tail_strain: np.ndarray
+    tail_time_step: np.ndarray
+    tail_rheology: np.ndarray
+
+    def tail_average(self, window: float) -> np.ndarray:
+        """Time average of ``(eta_r, N1, N2)`` over the last ``window`` strains of the pre-shear tail."""
+        end = self.tail_strain[-1] + self.tail_time_step[-1]
+        mask = self.tail_strain >= end - window - 1e-12
+        if not np.any(mask):
+            mask[-1] = True
+        w = self.tail_time_step[mask]
+        return (w[:, None] * self.tail_rheology[mask]).sum(axis=0) / w.sum()
+
+
+@dataclass(frozen=True)
+class StateLibrary:
+    """Pre-sheared start states for one simulation setup.
+
+    Attributes:
+        config: the simulation config of the episodes (its seed and strain are ignored; its field must be
+            off).
+        preshear_strain: strain sheared without field from the random packing (> tail_strain).
+        tail_strain: strain at the end of the pre-shear whose per-step rheology is kept (> 0).
+        split_sizes: number of states per split.
+        root: cache root (default :func:`cache_root`).
+    """
+
+    config: sim.SimulationConfig
+    preshear_strain: float = 5.0
+    tail_strain: float = 1.0
+    split_sizes: dict[str, int] = field(default_factory=lambda: dict(DEFAULT_SPLIT_SIZES))
+    root: Path | None = None
+
+    def __post_init__(self) -> None:
+        if not math.isinf(self.config.mason_number):
+            raise ValueError(
+                "the start states are pre-sheared without field: config.mason_number must be inf"
+            )
+        if not (0.0 < self.tail_strain < self.preshear_strain and math.isfinite(self.preshear_strain)):
+            raise ValueError(
+                "need 0 < tail_strain < preshear_strain (finite), got "
+                f"{self.tail_strain}, {self.preshear_strain}"
+            )
+        for split in SPLITS:
+            size = self.split_sizes.get(split, 0)
+            if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= 100_000:
+                raise ValueError(f"split_sizes[{split!r}] must be an integer in [1, 100000], got {size!r}")
+
+    # -- identity ----------------------------------------------------------------------------------------
+    def parameters(self) -> dict[str, Any]:
+        """Everything that shapes the states (the cache key is its hash)."""
+        config = self.config.to_dict()
+        for name in ("seed", "strain", "transient_strain", "checkpoint_every", "n_blocks"):
+            config.pop(name, None)
+        return {
+            "library_version": LIBRARY_VERSION,
+            "sim_version": sim.__version__,
+            "preshear_strain": self.preshear_strain,
+            "tail_strain": self.tail_strain,
+            "config": config,
+        }
+
+    @property
+    def key(self) -> str:
+        text = json.dumps(self.parameters(), sort_keys=True)
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    @property
+    def directory(self) -> Path:
+        return (self.root or cache_root()) / "states" / self.key
+
+    def seed(self, split: str, index: int) -> int:
+        """Packing seed of state ``index`` of ``split``."""
+        self._check(split, index)
+        return SPLIT_SEED_OFFSET[split] + index
+
+    def path(self, split: str, index: int) -> Path:
+        return self.directory / f"{split}_{index:05d}_seed{self.seed(split, index)}.npz"
+
+    def _check(self, split: str, index: int) -> None:
+        if split not in SPLITS:
+            raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
+        size = self.split_sizes[split]
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < size:
+            raise ValueError(f"index must be an integer in [0, {size}) for split {split!r}, got {index!r}")
+
+    # -- generation ----------------------------------------------------------------------------------------
+    def missing(self, splits: Iterable[str] = SPLITS) -> list[tuple[str, int]]:
+        """``(split, index)`` of the states not on disk yet."""
+        return [(s, i) for s in splits for i in range(self.split_sizes[s]) if not self.path(s, i).exists()]
+
+    def ensure(self, splits: Iterable[str] = SPLITS, progress: bool = True) -> None:
+        """Generate the missing states of ``splits`` (progress bar on stderr unless ``progress=False``)."""
+        todo = self.missing(list(splits))
+        if not todo:
+            return
+        self.directory.mkdir(parents=True, exist_ok=True)
+        params = self.directory / "library.json"
+        if not params.exists():
+            provenance = {**self.parameters(), "sim_source_at_generation": simulator_source_digest()}
+            _atomic_write_text(params, json.dumps(provenance, indent=1, sort_keys=True))
+        description = (
+            f"pre-shearing start states (N={self.config.n_particles}, phi={self.config.volume_fraction}, "
+            f"{self.preshear_strain:g} strains)"
+        )
+        for split, index in tqdm(todo, desc=description, unit="state", disable=not progress, leave=False):
+            self._generate(split, index)
+
+    def _generate(self, split: str, index: int) -> None:
+        seed = self.seed(split, index)
+        config = replace(self.config, seed=seed, strain=self.preshear_strain)
+        simulation = sim.Simulation(config, keep_records=False)
+        try:
+            simulation.advance_to(self.preshear_strain - self.tail_strain)
+            records = simulation.advance_to(self.preshear_strain)
+        except sim.SimulationError as error:
+            raise RuntimeError(
+                f"pre-shearing start state {split}[{index}] (packing seed {seed}) failed: {error}"
+            ) from error
+        eta, n1, n2 = sim.rheology(records.stress.sum(axis=1))
+        arrays = dict(simulation.snapshot().arrays())
+        arrays.update(
+            tail_strain=records.strain,
+            tail_time_step=records.time_step,
+            tail_rheology=np.stack([eta, n1, n2], axis=1),
+            seed=np.array(seed),
+        )
+        _atomic_save_npz(self.path(split, index), arrays)
+
+    # -- reading -------------------------------------------------------------------------------------------
+    def load(self, split: str, index: int, progress: bool = True) -> StartState:
+        """State ``index`` of ``split`` (its split is generated first if this state is missing)."""
+        path = self.path(split, index)
+        if not path.exists():
+            self.ensure([split], progress=progress)
+        with np.load(path) as data:
+            return StartState(
+                state=sim.SimulationState.from_arrays(data),
+                seed=int(data["seed"]),
+                split=split,
+                index=int(index),
+                tail_strain=np.array(data["tail_strain"]),
+                tail_time_step=np.array(data["tail_time_step"]),
+                tail_rheology=np.array(data["tail_rheology"]),
+            )
+
+
+def _atomic_write_text(path: Path, text: str) -> None:
+    with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as handle:
+        handle.write(text)
+    os.replace(handle.name, path)
+
+
+def _atomic_save_npz(path: Path, arrays: dict[str, Any]) -> None:
+    with tempfile.NamedTemporaryFile(dir=path.parent, delete=False, suffix=".npz") as handle:
+        np.savez(handle, **arrays)
+    os.replace(handle.name, path)

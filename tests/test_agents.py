@@ -1,0 +1,167 @@
+"""agents: task runner (local pool, Dask LocalCluster if installed), hyperparameters, and open_loop ->
+train (PPO, SAC; resume) -> evaluate end to end on the tiny environment."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+import yaml
+
+import dipenv
+from agents import evaluate, open_loop, train
+from agents.tasks import parse_seeds, run_tasks
+
+ENV = "dipenv/FieldMagnitudeTiny-v0"
+SHORT = ["n_steps=32", "batch_size=32", "n_epochs=2", "eval_freq=64", "checkpoint_freq=32"]
+
+
+@pytest.fixture(scope="module", autouse=True)
+def state_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("dipenv_cache_agents")
+    patcher = pytest.MonkeyPatch()
+    patcher.setenv("DIPENV_CACHE_DIR", str(root))
+    yield root
+    patcher.undo()
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def test_parse_seeds() -> None:
+    assert parse_seeds("0-4") == [0, 1, 2, 3, 4]
+    assert parse_seeds("3, 0,7-8") == [0, 3, 7, 8]
+    for bad in ("4-2", "-1", "a", ""):
+        with pytest.raises(ValueError, match="seeds"):
+            parse_seeds(bad)
+
+
+def test_run_tasks_local_pool_keeps_order() -> None:
+    assert run_tasks(_square, [3, 1, 2], workers=1) == [9, 1, 4]
+    assert run_tasks(_square, [3, 1, 2], workers=2) == [9, 1, 4]
+
+
+@pytest.mark.skipif(importlib.util.find_spec("distributed") is None, reason="dask.distributed not installed")
+def test_run_tasks_on_dask_local_cluster() -> None:
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        assert run_tasks(_square, [3, 1, 2], scheduler=cluster.scheduler_address) == [9, 1, 4]
+
+
+def test_hyperparameters_for_every_id() -> None:
+    for algo in train.ALGOS:
+        for env_id in dipenv.ENV_IDS:
+            params = train.load_hyperparams(algo, env_id, {"gamma": 0.5})
+            assert params["gamma"] == 0.5 and params["n_envs"] >= 1 and params["n_timesteps"] > 0
+    with pytest.raises(ValueError, match="no ppo hyperparameters"):
+        train.load_hyperparams("ppo", "CartPole-v1")
+    assert train.parse_overrides(["policy_kwargs={net_arch: [8]}"]) == {"policy_kwargs": {"net_arch": [8]}}
+
+
+def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    baseline = tmp_path / "open_loop"
+    rows = open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1"])
+    assert {r["label"] for r in rows} == {"off", "Mn1", "Mn0.2"}
+    for name in ("pareto.csv", "pareto.json", "pareto.png", "best_constant.json", "command.txt"):
+        assert (baseline / name).exists(), name
+    stamp = (baseline / "points" / "Mn1.json").stat().st_mtime_ns
+    open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1"])
+    assert (baseline / "points" / "Mn1.json").stat().st_mtime_ns == stamp  # resumed, not recomputed
+
+    ppo = tmp_path / "ppo"
+    common = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress"]
+    train.main([*common, "--algo", "ppo", "--seeds", "0-1", "--out", str(ppo), "--hyperparams", *SHORT])
+    run = ppo / "seed0"
+    for name in ("config.yml", "command.txt", "model.zip", "vecnormalize.pkl", "result.json"):
+        assert (run / name).exists(), name
+    assert any((run / "checkpoints").glob("ckpt_*_steps.zip"))
+    assert (run / "eval" / "evaluations.npz").exists() and any((run / "tb").iterdir())
+    assert any((run / "monitor").glob("*.monitor.csv"))
+    config = yaml.safe_load((run / "config.yml").read_text())
+    assert config["seed"] == 0 and config["algo"] == "ppo" and "sim_source" in config["versions"]
+    assert "agents.train" in (run / "command.txt").read_text()
+
+    # Finished: a rerun returns at once. Longer: it resumes from the last checkpoint.
+    train.main([*common, "--algo", "ppo", "--seed", "0", "--out", str(run), "--hyperparams", *SHORT])
+    (run / "result.json").unlink()
+    train.main(
+        [
+            "--env",
+            ENV,
+            "--timesteps",
+            "96",
+            "--n-envs",
+            "1",
+            "--no-progress",
+            "--algo",
+            "ppo",
+            "--seed",
+            "0",
+            "--out",
+            str(run),
+            "--hyperparams",
+            *SHORT,
+        ]
+    )
+    result = json.loads((run / "result.json").read_text())
+    assert result["resumed_from"] == 64 and result["timesteps"] >= 96
+
+    sac = tmp_path / "sac"
+    train.main(
+        [
+            *common,
+            "--algo",
+            "sac",
+            "--seed",
+            "0",
+            "--out",
+            str(sac),
+            "--hyperparams",
+            "learning_starts=16",
+            "batch_size=16",
+            "eval_freq=64",
+            "checkpoint_freq=64",
+        ]
+    )
+    assert (sac / "model.zip").exists() and any((sac / "checkpoints").glob("ckpt_replay_buffer_*"))
+
+    out = tmp_path / "evaluation"
+    capsys.readouterr()
+    evaluate.main([str(ppo), str(sac), "--baseline", str(baseline), "--out", str(out)])
+    printed = capsys.readouterr().out
+    assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
+    for name in ("table.md", "results.json", "traces.png", "pareto.png"):
+        assert (out / name).exists(), name
+    results = json.loads((out / "results.json").read_text())
+    ppo_row = next(r for r in results["rows"] if r["name"] == "ppo (ppo)")
+    assert ppo_row["samples"] == "2 training seeds" and len(ppo_row["per_seed"]["eta"]) == 2
+
+
+def test_train_with_subprocess_envs(tmp_path: Path) -> None:
+    """Two environments in a SubprocVecEnv (the default for n_envs = 2)."""
+    out = tmp_path / "ppo2"
+    shutil.rmtree(out, ignore_errors=True)
+    results = train.main(
+        [
+            "--env",
+            ENV,
+            "--algo",
+            "ppo",
+            "--seed",
+            "3",
+            "--out",
+            str(out),
+            "--timesteps",
+            "64",
+            "--no-progress",
+            "--hyperparams",
+            *SHORT,
+        ]
+    )
+    assert results[0]["timesteps"] >= 64
+    assert len(list((out / "monitor").glob("*.monitor.csv"))) == 2

@@ -1,0 +1,236 @@
+"""dipenv: registration, Gymnasium and SB3 checks, determinism, open-loop consistency, bad actions, the
+failure path, flat memory, rendering, history, reset options.
+
+The standard ids are checked with short intervals and a 1/1/1-state library (same classes and code path,
+only the arguments that set the cost changed); the tiny ids at their defaults. Start states go to a
+temporary cache (``DIPENV_CACHE_DIR``).
+"""
+
+from __future__ import annotations
+
+import math
+import tracemalloc
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env as gym_check_env
+from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+import dipenv
+import sim
+from dipenv.envs.field_control import FieldMagnitudeEnv
+from dipenv.observations import observation_features
+
+TINY_IDS = ["dipenv/FieldMagnitudeTiny-v0", "dipenv/FieldVectorTiny-v0"]
+FAST = {
+    "control_interval": 0.01,
+    "preshear_strain": 0.4,
+    "split_sizes": {"train": 1, "validation": 1, "test": 1},
+    "mason_min": 0.2,
+}
+"""Cheap arguments for checking the API of the standard ids (N = 64, phi = 0.45 kept)."""
+
+
+@pytest.fixture(scope="module", autouse=True)
+def state_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    root = tmp_path_factory.mktemp("dipenv_cache")
+    patcher = pytest.MonkeyPatch()
+    patcher.setenv("DIPENV_CACHE_DIR", str(root))
+    yield root
+    patcher.undo()
+
+
+def make(env_id: str, **kwargs: object) -> gym.Env:
+    extra = dict(FAST) if "Tiny" not in env_id else {}
+    extra.update(kwargs)
+    return gym.make(env_id, progress=False, **extra)
+
+
+def test_every_id_is_registered() -> None:
+    assert set(dipenv.ENV_IDS) == {
+        "dipenv/FieldMagnitude-v0",
+        "dipenv/FieldVector-v0",
+        "dipenv/FieldMagnitudeTiny-v0",
+        "dipenv/FieldVectorTiny-v0",
+    }
+    for env_id in dipenv.ENV_IDS:
+        assert gym.spec(env_id).max_episode_steps is not None
+
+
+@pytest.mark.parametrize("env_id", dipenv.ENV_IDS)
+def test_gymnasium_and_sb3_check_env(env_id: str) -> None:
+    env = make(env_id, render_mode="rgb_array")
+    gym_check_env(env.unwrapped, skip_render_check=False)
+    sb3_check_env(make(env_id), warn=True)
+
+
+def test_determinism_same_seed_same_actions() -> None:
+    """Two envs, the same seed and actions: bit-identical observations, rewards and physics."""
+    actions = [np.array([a], dtype=np.float32) for a in (0.9, -1.0, 0.3, 0.6, -0.5)]
+    runs = []
+    for _ in range(2):
+        env = make("dipenv/FieldMagnitudeTiny-v0")
+        obs, info = env.reset(seed=11)
+        trace = [obs, info["index"]]
+        for a in actions:
+            obs, reward, *_, info = env.step(a)
+            trace += [obs, reward, info["eta_r"], info["n1"]]
+        runs.append(trace)
+    for x, y in zip(*runs, strict=True):
+        np.testing.assert_array_equal(x, y)
+    env = make("dipenv/FieldMagnitudeTiny-v0")
+    indices = {env.reset(seed=s)[1]["index"] for s in range(20)}
+    assert len(indices) > 1  # the start state is drawn from the split
+
+
+def test_constant_action_reproduces_open_loop_run() -> None:
+    """A constant action over 3 intervals equals a plain Simulation at that Mn from the same state."""
+    env = make("dipenv/FieldMagnitudeTiny-v0")
+    unwrapped = env.unwrapped
+    u = np.float32(0.4)
+    mn = unwrapped.mapping.mason_number(float(u))  # of the float32 action the env receives
+    env.reset(seed=0, options={"split": "test", "index": 1})
+    etas, energies = [], []
+    for _ in range(3):
+        _, _, _, _, info = env.step(np.array([u], dtype=np.float32))
+        etas.append(info["eta_r"])
+        energies.append(info["field_energy"])
+    start = unwrapped.library().load("test", 1)
+    config = unwrapped._simulation.config
+    simulation = sim.Simulation(config, state=start.state, keep_records=False)
+    simulation.set_field(mn, (0.0, 1.0, 0.0))
+    t0 = simulation.state.strain
+    for k in range(3):
+        records = simulation.advance_to(t0 + (k + 1) * unwrapped.control_interval)
+        eta = sim.rheology(records.stress.sum(axis=1))[0]
+        expected = float(np.sum(records.time_step * eta) / records.time_step.sum())
+        assert etas[k] == pytest.approx(expected, rel=1e-12)
+        assert energies[k] == pytest.approx(1.0 / mn, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "action",
+    [
+        np.array([np.nan], dtype=np.float32),
+        np.array([np.inf]),
+        np.array([0.1, 0.2]),
+        np.array(0.5),
+        np.zeros((1, 1)),
+        np.array(["a"]),
+    ],
+)
+def test_bad_actions_are_rejected(action: np.ndarray) -> None:
+    env = FieldMagnitudeEnv(**{**dipenv.TINY_KWARGS, "progress": False})
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(action)
+
+
+def test_out_of_range_action_is_clipped_and_flagged() -> None:
+    env = make("dipenv/FieldMagnitudeTiny-v0")
+    env.reset(seed=0)
+    *_, info = env.unwrapped.step(np.array([3.0]))
+    assert info["action_clipped"] and info["mason_number"] == pytest.approx(env.unwrapped.mapping.mason_min)
+    *_, info = env.unwrapped.step(np.array([0.0]))
+    assert not info["action_clipped"]
+
+
+def test_failure_path_terminates_with_flag_and_penalty() -> None:
+    """A solver that cannot converge (10 iterations to 1e-14) fails the first step: terminated, flagged."""
+    env = make(
+        "dipenv/FieldMagnitudeTiny-v0",
+        simulation_overrides={"solver_max_iterations": 10, "solver_tolerance": 1e-14},
+    )
+    env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(np.array([1.0], dtype=np.float32))
+    assert terminated and not truncated
+    assert info["simulation_failed"] and info["failure_message"]
+    steps = env.unwrapped.episode_steps
+    assert reward == pytest.approx(-env.unwrapped.failure_penalty * steps)
+    assert env.observation_space.contains(obs)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.unwrapped.step(np.array([0.0]))
+    env.reset(seed=1)  # usable again
+
+
+def test_truncation_after_episode_steps() -> None:
+    env = make("dipenv/FieldMagnitudeTiny-v0", episode_steps=3)
+    env.reset(seed=0)
+    flags = [env.step(np.array([-1.0], dtype=np.float32))[3] for _ in range(3)]
+    assert flags == [False, False, True]
+
+
+def test_memory_stays_flat() -> None:
+    """Python allocations do not grow with the number of steps (records are not kept)."""
+    env = make("dipenv/FieldMagnitudeTiny-v0", control_interval=0.004, episode_steps=10_000)
+    env.reset(seed=0)
+    action = np.array([-1.0], dtype=np.float32)
+    for _ in range(20):
+        env.step(action)
+    tracemalloc.start()
+    for _ in range(50):
+        env.step(action)
+    first, _ = tracemalloc.get_traced_memory()
+    for _ in range(250):
+        env.step(action)
+    second, _ = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    assert second - first < 100_000, (first, second)
+
+
+def test_render_rgb_array() -> None:
+    env = make("dipenv/FieldVectorTiny-v0", render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(np.array([1.0, 0.0, 0.0], dtype=np.float32))
+    image = env.render()
+    assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
+    assert image.std() > 0
+
+
+def test_history_stacks_previous_frames() -> None:
+    env = make("dipenv/FieldMagnitudeTiny-v0", history_length=2)
+    frame = len(observation_features(False))
+    assert env.observation_space.shape == (3 * frame,)
+    obs0, _ = env.reset(seed=0)
+    np.testing.assert_array_equal(obs0[:frame], obs0[frame : 2 * frame])
+    obs1, *_ = env.step(np.array([0.5], dtype=np.float32))
+    np.testing.assert_array_equal(obs1[frame : 2 * frame], obs0[:frame])
+    assert len(env.unwrapped.observation_labels) == 3 * frame
+
+
+def test_observation_layout_is_documented() -> None:
+    for cls, vector in ((dipenv.FieldMagnitudeEnv, False), (dipenv.FieldVectorEnv, True)):
+        doc = cls.__doc__ or ""
+        for section in ("Description", "Action Space", "Observation Space", "Rewards", "Starting State"):
+            assert f"## {section}" in doc
+        for feature in observation_features(vector):
+            assert feature.name.split("_")[0] in doc, feature.name
+        assert ("field_ex" in doc) == vector
+
+
+def test_reset_options() -> None:
+    env = make("dipenv/FieldMagnitudeTiny-v0")
+    _, info = env.reset(seed=0, options={"split": "validation", "index": 1})
+    assert (info["split"], info["index"], info["packing_seed"]) == ("validation", 1, 100_001)
+    with pytest.raises(ValueError, match="unknown reset options"):
+        env.reset(options={"phi": 0.4})
+    with pytest.raises(ValueError, match="index"):
+        env.reset(options={"index": 99})
+    cycle = make("dipenv/FieldMagnitudeTiny-v0", split="test", start_state="cycle")
+    assert [cycle.reset()[1]["index"] for _ in range(3)] == [0, 1, 0]
+    _, info = env.reset(seed=0, options={"volume_fraction": 0.40, "index": 0})
+    assert info["volume_fraction"] == 0.40 and info["library_key"] != env.unwrapped.library().key
+
+
+def test_actuator_lag_and_vector_direction() -> None:
+    env = make("dipenv/FieldVectorTiny-v0", actuator_time_constant=0.02)
+    env.reset(seed=0)
+    mapping = env.unwrapped.mapping
+    *_, info = env.step(np.array([1.0, 1.0, 0.0], dtype=np.float32))  # strongest field along x
+    command = mapping.amplitude(info["mason_number_command"])
+    expected = command * (1.0 - math.exp(-env.unwrapped.control_interval / 0.02))
+    assert mapping.amplitude(info["mason_number"]) == pytest.approx(expected, rel=1e-12)
+    np.testing.assert_allclose(info["field_direction"], [1.0, 0.0, 0.0], atol=1e-12)
+    assert 0.0 < info["field_energy"] < 1.0 / info["mason_number_command"]

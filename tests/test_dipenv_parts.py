@@ -1,0 +1,124 @@
+"""dipenv building blocks: action mapping, direction, actuator filter, reward, observation bounds, library."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import sim
+from dipenv.actions import (
+    ActuatorFilter,
+    FieldStrengthMapping,
+    action_from_direction,
+    direction_from_action,
+    validate_action,
+)
+from dipenv.observations import observation_bounds, observation_features, signed_log
+from dipenv.rewards import ViscosityTargetReward, default_target_viscosity
+from dipenv.state_library import SPLIT_SEED_OFFSET, StateLibrary
+
+
+def test_strength_mapping_ends_off_band_and_inverse() -> None:
+    m = FieldStrengthMapping(0.05, 20.0, 0.1)
+    assert m.mason_number(1.0) == pytest.approx(0.05)
+    assert m.mason_number(-0.9) == pytest.approx(20.0)
+    assert math.isinf(m.mason_number(-0.95)) and math.isinf(m.mason_number(-1.0))
+    for u in np.linspace(-0.9, 1.0, 11):
+        assert m.action_for(m.mason_number(float(u))) == pytest.approx(u, abs=1e-12)
+    assert m.mason_number(0.0) == pytest.approx(math.exp(math.log(20) + (0.9 / 1.9) * math.log(0.05 / 20)))
+    assert m.action_for(math.inf) == -1.0 and m.coordinate(1e6) == pytest.approx(-0.9)
+    with pytest.raises(ValueError, match="mason_number"):
+        m.action_for(0.01)
+    with pytest.raises(ValueError, match="mason_max"):
+        FieldStrengthMapping(1.0, 0.5)
+
+
+def test_direction_mapping_round_trip_and_hemisphere() -> None:
+    np.testing.assert_allclose(direction_from_action(-1.0, 0.3), [0.0, 1.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(direction_from_action(1.0, 0.0), [1.0, 0.0, 0.0], atol=1e-15)
+    np.testing.assert_allclose(direction_from_action(1.0, 0.5), [0.0, 0.0, 1.0], atol=1e-15)
+    rng = np.random.default_rng(0)
+    for polar, azimuth in rng.uniform(-1, 1, size=(20, 2)):
+        e = direction_from_action(polar, azimuth)
+        assert np.linalg.norm(e) == pytest.approx(1.0) and e[1] >= 0
+        np.testing.assert_allclose(direction_from_action(*action_from_direction(e)), e, atol=1e-12)
+        np.testing.assert_allclose(direction_from_action(*action_from_direction(-e)), e, atol=1e-12)
+
+
+def test_validate_action() -> None:
+    clipped, flag = validate_action(np.array([1.5, -0.2]), (2,))
+    assert clipped.tolist() == [1.0, -0.2] and flag
+    with pytest.raises(ValueError, match="shape"):
+        validate_action([0.1], (2,))
+    with pytest.raises(ValueError, match="finite"):
+        validate_action(np.array([np.nan]), (1,))
+
+
+def test_actuator_filter_is_the_exact_exponential() -> None:
+    f = ActuatorFilter(time_constant=0.5, substeps=4)
+    held, end = f.schedule(0.2, 1.0, 1.0)
+    assert held == pytest.approx([1.0 - 0.8 * math.exp(-(k + 0.5) / 4 / 0.5) for k in range(4)])
+    assert end == pytest.approx(1.0 - 0.8 * math.exp(-2.0))
+    assert ActuatorFilter().schedule(0.2, 0.7, 1.0) == ([0.7], 0.7)
+    held, end = ActuatorFilter(0.001, 2).schedule(1.0, 0.0, 0.1)  # decays below the snap: off
+    assert held == [0.0, 0.0] and end == 0.0
+
+
+def test_reward_terms() -> None:
+    reward = ViscosityTargetReward(target_viscosity=5.0, energy_weight=2.0, failure_penalty=10.0)
+    r, terms = reward(7.0, 0.5)
+    assert r == pytest.approx(-3.0) and terms["reward_viscosity"] == -2.0 and terms["reward_energy"] == -1.0
+    assert reward.failure(3)[0] == -40.0
+    assert default_target_viscosity(0.45) > 1.0
+    with pytest.raises(ValueError, match="target_viscosity"):
+        default_target_viscosity(0.2)
+
+
+def test_observation_bounds_and_signed_log() -> None:
+    low, high = observation_bounds(True, 1)
+    assert low.shape == (2 * len(observation_features(True)),) and np.all(low < high)
+    assert signed_log(-9.0) == pytest.approx(-1.0) and signed_log(0.0) == 0.0
+
+
+def test_library_key_tracks_every_shaping_parameter(tmp_path: Path) -> None:
+    config = sim.SimulationConfig(n_particles=32, volume_fraction=0.45, near_field_cutoff=3.0)
+    base = StateLibrary(config, root=tmp_path)
+    assert base.key == StateLibrary(replace(config, seed=9, strain=3.0), root=tmp_path).key
+    for other in (
+        StateLibrary(replace(config, volume_fraction=0.4), root=tmp_path),
+        StateLibrary(replace(config, solver_tolerance=1e-6), root=tmp_path),
+        StateLibrary(config, preshear_strain=4.0, root=tmp_path),
+    ):
+        assert other.key != base.key
+    assert base.seed("test", 3) == SPLIT_SEED_OFFSET["test"] + 3
+    with pytest.raises(ValueError, match="split"):
+        base.seed("holdout", 0)
+    with pytest.raises(ValueError, match="mason_number"):
+        StateLibrary(replace(config, mason_number=1.0), root=tmp_path)
+
+
+def test_library_generates_once_and_reloads(tmp_path: Path) -> None:
+    config = sim.SimulationConfig(n_particles=32, volume_fraction=0.45, near_field_cutoff=3.0)
+    library = StateLibrary(
+        config,
+        preshear_strain=0.2,
+        tail_strain=0.1,
+        root=tmp_path,
+        split_sizes={"train": 2, "validation": 1, "test": 1},
+    )
+    library.ensure(["train"], progress=False)
+    assert library.missing(["train"]) == []
+    assert len(library.missing()) == 2
+    path = library.path("train", 1)
+    stamp = path.stat().st_mtime_ns
+    library.ensure(["train"], progress=False)
+    assert path.stat().st_mtime_ns == stamp
+    start = library.load("train", 1)
+    assert start.seed == 1 and start.state.strain >= 0.2 and math.isinf(start.state.mason_number)
+    mean = start.tail_average(0.05)
+    assert mean.shape == (3,) and np.all(np.isfinite(mean))
+    assert (library.directory / "library.json").exists()
