@@ -7,13 +7,15 @@ of the spacing, dt <= 2e-3), far-field Ewald sums at relative accuracy 1e-6; ``n
 (far-field kernels only, issue 10) or ``"exact"`` (two-sphere functions blended in below r = 4 a). The
 tables go to ``runs/validation_dip/<near field>/table.md`` (reproduced in the README).
 
-What is asserted follows from the model itself, whatever the near field: the DIP stress contributions
-scale as ``1/Mn`` at fixed structure, so their sum at Mn = 0.1 is dominated by the isolated-sphere term
-``n S0 = (27/4) phi (ee - I/3) / Mn`` (N1 part ``-(27/4) phi / Mn``, within 25%: the pair terms measured
-here are <= 10% of it); ``U_rms^DIP / U_rms^shear`` falls monotonically with Mn. The paper's trends
-(Mn >= 5 collapse onto pure shear, the low-Mn viscosity drop, thickening across Mn = 1, the crossing of
-the velocity ratio at Mn = 0.7-1, normal-stress signs) are reported in the table and compared in the
-README, not asserted: which of them the model reproduces is the result.
+What is asserted: for both grids, ``U_rms^DIP / U_rms^shear`` falls monotonically with Mn (the DIP
+velocity scales as 1/Mn); for the exact near field, the paper's trends that this model reproduces
+(physics.md §8, paper §3.1): phi = 0.15 nearly Newtonian (every Mn within 10% of pure shear; measured
+3%), a lower viscosity at Mn = 0.1 than without field at phi >= 0.3 (measured 2.2x lower at 0.45), and
+shear thickening from Mn = 0.1 to 1 to 10 at phi >= 0.3. The trends it does not reproduce (the collapse
+of Mn >= 5 onto pure shear: Mn = 10 is 23-48% above it; the velocity-ratio crossing at Mn = 0.7-1: here
+1.1-2; N1 > 0, N2 < 0 at phi = 0.15 and low Mn) are in the table and discussed in the README, with the
+evidence; they are not asserted (a test that fails for a documented modelling reason would only be
+skipped).
 """
 
 from __future__ import annotations
@@ -83,10 +85,15 @@ def test_sheared_dipolophoresis(near_field: str) -> None:
     (out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     for phi in VOLUME_FRACTIONS[near_field]:
-        low = by_point[(phi, 0.1)]
-        isolated_n1 = -27.0 / 4.0 * phi / 0.1
-        assert abs(_part(low, DIP_PARTS, "n1") / isolated_n1 - 1) <= 0.25, (phi, _part(low, DIP_PARTS, "n1"))
         ratios = [
             by_point[(phi, mn)]["u_rms_dip"] / by_point[(phi, mn)]["u_rms_shear"] for mn in MASON_NUMBERS
         ]
         assert ratios[0] > ratios[1] > ratios[2] > ratios[3] == 0.0, (phi, ratios)
+    if near_field != "exact":
+        return
+    eta = {point: r["relative_viscosity"] for point, r in by_point.items()}
+    for mn in MASON_NUMBERS:
+        assert abs(eta[(0.15, mn)] / eta[(0.15, math.inf)] - 1) <= 0.10, (mn, eta[(0.15, mn)])
+    for phi in (0.30, 0.45):
+        assert eta[(phi, 0.1)] < eta[(phi, math.inf)], phi
+        assert eta[(phi, 0.1)] < eta[(phi, 1.0)] < eta[(phi, 10.0)], phi

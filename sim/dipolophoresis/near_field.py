@@ -196,6 +196,18 @@ def _near_contact(gap: float, parameters: FloatArray) -> float:
 
 
 @njit(cache=True)
+def _accumulate(
+    out0: float, out1: float, out2: float, index: int, value: float
+) -> tuple[float, float, float]:
+    """Add ``value`` to component ``index`` of a 3-tuple (the kernels allocate nothing per call)."""
+    if index == 0:
+        return out0 + value, out1, out2
+    if index == 1:
+        return out0, out1 + value, out2
+    return out0, out1, out2 + value
+
+
+@njit(cache=True)
 def near_field_kernel(
     r: float, mechanism_code: int, grid: FloatArray, coefficients: FloatArray, asymptotics: FloatArray
 ) -> tuple[float, float, float]:
@@ -216,23 +228,28 @@ def near_field_kernel(
     """
     first = 0 if mechanism_code != 1 else 3
     last = 6 if mechanism_code != 0 else 3
-    out = np.zeros(3)
+    out0 = 0.0
+    out1 = 0.0
+    out2 = 0.0
     gap = r - 2.0
     if r > grid[3]:
         for function in range(first, last):
-            out[function % 3] += _far_field(r, function)
+            value = _far_field(r, function)
+            out0, out1, out2 = _accumulate(out0, out1, out2, function % 3, value)
     elif gap < grid[4]:
         gap = max(gap, grid[5])
         for function in range(first, last):
-            out[function % 3] += _near_contact(gap, asymptotics[function])
+            value = _near_contact(gap, asymptotics[function])
+            out0, out1, out2 = _accumulate(out0, out1, out2, function % 3, value)
     else:
         s = math.log(gap)
         k = min(max(int((s - grid[0]) / grid[1]), 0), int(grid[2]) - 2)
         h = s - (grid[0] + k * grid[1])
         for function in range(first, last):
             c = coefficients[function, k]
-            out[function % 3] += c[0] + h * (c[1] + h * (c[2] + h * c[3]))
-    return out[0], out[1], out[2]
+            value = c[0] + h * (c[1] + h * (c[2] + h * c[3]))
+            out0, out1, out2 = _accumulate(out0, out1, out2, function % 3, value)
+    return out0, out1, out2
 
 
 @njit(cache=True)

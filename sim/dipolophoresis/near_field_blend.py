@@ -49,7 +49,7 @@ from numba import njit
 
 from sim.dipolophoresis.far_field import MECHANISM_DEP, MECHANISM_DIP, MECHANISM_ICEP, far_field_functions
 from sim.dipolophoresis.near_field import near_field_kernel
-from sim.dipolophoresis.near_field_stress import pair_stress_corrections
+from sim.dipolophoresis.near_field_stress import dep_force_kernel, near_field_stress_kernel
 from sim.geometry.neighbors import build_pair_list
 
 
@@ -76,38 +76,21 @@ def mechanism_codes(icep_weight: float, dep_weight: float) -> tuple[int, int]:
 
 
 @njit(cache=True)
-def pair_correction(
-    x: np.ndarray,
-    e: np.ndarray,
-    icep_weight: float,
-    dep_weight: float,
-    r_cut: float,
-    width: float,
-    grid,
-    coefficients,
-    asymptotics,
-) -> np.ndarray:
-    """``dU_alpha / U0`` (3,) for one pair with ``x = x_alpha - x_beta`` (units a); zero beyond ``r_cut``.
-
-    ``icep_weight``, ``dep_weight``: the mechanism switch (each 0 or 1, not both 0).
-    """
-    out = np.zeros(3)
-    r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
-    w = blend_weight(r, r_cut, width)
-    if w == 0.0:
-        return out
-    near_code, far_code = mechanism_codes(icep_weight, dep_weight)
-    exact_par, exact_perp, exact_x = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
-    far_par, far_perp, far_x = far_field_functions(r, far_code)
-    d_par = exact_par - far_par
-    d_perp = exact_perp - far_perp
-    d_x = exact_x - far_x
-    c = (e[0] * x[0] + e[1] * x[1] + e[2] * x[2]) / r
-    radial = d_par * c * c + d_perp * (1.0 - c * c)
-    for k in range(3):
-        xh = x[k] / r
-        out[k] = w * (radial * xh + 2.0 * d_x * c * (e[k] - c * xh))
-    return out
+def _add_basis(
+    out: np.ndarray, factor: float, f1: float, f2: float, f3: float, f4: float, xh: np.ndarray, e: np.ndarray
+) -> None:
+    """``out += factor (f1 T1 + f2 T2 + f3 T3 + f4 T4)`` with the traceless basis of
+    :mod:`sim.dipolophoresis.near_field_stress` (``T1 = ee - I/3``, ``T2 = c (e xh + xh e) - (2/3) c^2 I``,
+    ``T3 = xh xh - I/3``, ``T4 = c^2 (xh xh - I/3)``)."""
+    c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
+    radial = f3 + f4 * c * c
+    trace = -(f1 + 2.0 * f2 * c * c + radial) / 3.0
+    for i in range(3):
+        for j in range(3):
+            v = f1 * e[i] * e[j] + f2 * c * (e[i] * xh[j] + xh[i] * e[j]) + radial * xh[i] * xh[j]
+            if i == j:
+                v += trace
+            out[i, j] += factor * v
 
 
 @njit(cache=True)
@@ -128,6 +111,8 @@ def add_near_field_corrections(
 ) -> int:
     """Add the blended near-field corrections of every pair closer than ``r_cut`` (in place).
 
+    Nothing is allocated per pair (the loop runs over ~15 N pairs every step).
+
     Args:
         positions: (N, 3) wrapped positions (units a).
         box_length, offset: box side and Lees–Edwards offset (units a); ``r_cut`` must be below ``L/2``.
@@ -143,32 +128,62 @@ def add_near_field_corrections(
         The number of pairs closer than ``r_cut``.
     """
     grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = tables
+    near_code, far_code = mechanism_codes(icep_weight, dep_weight)
     pairs, separations = build_pair_list(positions, box_length, offset, r_cut)
     volume = box_length**3
-    x = np.empty(3)
     xh = np.empty(3)
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
-        for c in range(3):
-            x[c] = -separations[k, c]  # separations are x_j - x_i; alpha = i
-        du = pair_correction(x, e, icep_weight, dep_weight, r_cut, width, grid, coefficients, asymptotics)
-        for c in range(3):
-            velocity[i, c] += du[c]
-            velocity[j, c] -= du[c]
-        r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        r = math.sqrt(separations[k, 0] ** 2 + separations[k, 1] ** 2 + separations[k, 2] ** 2)
         w = blend_weight(r, r_cut, width)
         if w == 0.0:
             continue
         for c in range(3):
-            xh[c] = x[c] / r
-        d_icep, s_dep, d_force = pair_stress_corrections(
-            xh, e, r, stress_grid, stress_coefficients, stress_asymptotics
-        )
-        scale = math.pi * w / volume  # table units pi eps a^3 E0^2 (stresslets), pi eps a^2 E0^2 (forces)
-        for a in range(3):
-            for b in range(3):
-                icep_stress[a, b] += icep_weight * 2.0 * scale * d_icep[a, b]
-                dep_stresslet[a, b] += dep_weight * 2.0 * scale * s_dep[a, b]
-                dep_virial[a, b] -= dep_weight * 0.5 * scale * (x[a] * d_force[b] + x[b] * d_force[a])
+            xh[c] = -separations[k, c] / r  # separations are x_j - x_i; alpha = i, xh from j to i
+        c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
+        # velocity: w (exact - far) in the isotropic form, U_j = -U_i
+        exact_par, exact_perp, exact_x = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
+        far_par, far_perp, far_x = far_field_functions(r, far_code)
+        radial = (exact_par - far_par) * c * c + (exact_perp - far_perp) * (1.0 - c * c)
+        tangential = 2.0 * (exact_x - far_x) * c
+        for m in range(3):
+            du = w * (radial * xh[m] + tangential * (e[m] - c * xh[m]))
+            velocity[i, m] += du
+            velocity[j, m] -= du
+        # stresses; table units pi eps a^3 E0^2 (stresslets) and pi eps a^2 E0^2 (forces)
+        scale = math.pi * w / volume
+        if icep_weight > 0.0:
+            f1, f2, f3, f4 = near_field_stress_kernel(
+                r, 0, stress_grid, stress_coefficients, stress_asymptotics
+            )
+            inv_r3 = 1.0 / (r * r * r)  # minus physics.md's far field 9 T1 - 36 T2 - 22.5 T3 + 112.5 T4
+            _add_basis(
+                icep_stress,
+                2.0 * scale,
+                f1 - 9.0 * inv_r3,
+                f2 + 36.0 * inv_r3,
+                f3 + 22.5 * inv_r3,
+                f4 - 112.5 * inv_r3,
+                xh,
+                e,
+            )
+        if dep_weight > 0.0:
+            g1, g2, g3, g4 = near_field_stress_kernel(
+                r, 1, stress_grid, stress_coefficients, stress_asymptotics
+            )
+            _add_basis(dep_stresslet, 2.0 * scale, g1, g2, g3, g4, xh, e)
+            f_par, f_perp, f_x = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
+            inv_r4 = 1.0 / (r * r * r * r)  # far field F = -3 W / r^4, W = (5c^2 - 1) xh - 2 c e
+            force_radial = f_par * c * c + f_perp * (1.0 - c * c) + 3.0 * inv_r4 * (5.0 * c * c - 1.0)
+            force_tangential = 2.0 * f_x * c
+            for a in range(3):
+                d_force_a = (
+                    force_radial * xh[a] + force_tangential * (e[a] - c * xh[a]) - 6.0 * inv_r4 * c * e[a]
+                )
+                for b in range(3):
+                    d_force_b = (
+                        force_radial * xh[b] + force_tangential * (e[b] - c * xh[b]) - 6.0 * inv_r4 * c * e[b]
+                    )
+                    dep_virial[a, b] -= 0.5 * scale * r * (xh[a] * d_force_b + xh[b] * d_force_a)
     return pairs.shape[0]

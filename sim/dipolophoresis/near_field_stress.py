@@ -222,14 +222,17 @@ def near_field_stress_kernel(
     Returns:
         The four scalar functions, units ``pi eps a^3 E0^2``.
     """
-    out = np.zeros(4)
+    f1 = f2 = f3 = f4 = 0.0
     if mechanism_code != 1:
-        for k in range(4):
-            out[k] += _evaluate(r, k, grid, coefficients, asymptotics)
+        f1 += _evaluate(r, 0, grid, coefficients, asymptotics)
+        f2 += _evaluate(r, 1, grid, coefficients, asymptotics)
+        f3 += _evaluate(r, 2, grid, coefficients, asymptotics)
+        f4 += _evaluate(r, 3, grid, coefficients, asymptotics)
     if mechanism_code != 0:
-        for k in range(1, 4):
-            out[k] += _evaluate(r, k + 3, grid, coefficients, asymptotics)
-    return out[0], out[1], out[2], out[3]
+        f2 += _evaluate(r, 4, grid, coefficients, asymptotics)
+        f3 += _evaluate(r, 5, grid, coefficients, asymptotics)
+        f4 += _evaluate(r, 6, grid, coefficients, asymptotics)
+    return f1, f2, f3, f4
 
 
 @njit(cache=True)
