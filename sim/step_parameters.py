@@ -41,6 +41,8 @@ NEAR_FIELD_TABLES = (
     STRESS_ASYMPTOTICS,
 )
 """The exact two-sphere tables the compiled step reads (velocities, then stresses)."""
+if not np.array_equal(NEAR_FIELD_GRID, STRESS_GRID):  # the blend evaluates both tables on one search
+    raise RuntimeError("the near-field velocity and stress tables must share their nodes")
 
 MIN_STEP_FRACTION = 1.0e-4
 """The adaptive step never falls below this fraction of ``time_step``; steps taken at the floor are

@@ -76,6 +76,69 @@ def mechanism_codes(icep_weight: float, dep_weight: float) -> tuple[int, int]:
 
 
 @njit(cache=True)
+def _cubic(coefficients: np.ndarray, function: int, k: int, h: float) -> float:
+    """The table spline of ``function`` on interval ``k`` at ``h = ln(r - 2) - s_k``."""
+    c = coefficients[function, k]
+    return c[0] + h * (c[1] + h * (c[2] + h * c[3]))
+
+
+@njit(cache=True)
+def _pair_functions(
+    r: float, near_code: int, want_icep: bool, want_dep: bool, tables
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float, float, float]:
+    """Exact velocity functions (``F_par, F_perp, F_x`` of the mechanism), ICEP stress functions
+    ``f1..f4``, DEP stresslet functions ``g1..g4`` and DEP force functions at ``r`` (one pair).
+
+    Both tables share their nodes (uniform in ``ln(r - 2)``, checked on import of
+    :mod:`sim.step_parameters`), so on the splines one logarithm and one interval search serve all 16
+    functions; the values equal those of :func:`~sim.dipolophoresis.near_field.near_field_kernel`,
+    :func:`~sim.dipolophoresis.near_field_stress.near_field_stress_kernel` and
+    :func:`~sim.dipolophoresis.near_field_stress.dep_force_kernel` bit for bit (same arithmetic), which
+    this falls back to below the first node.
+    """
+    grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = tables
+    gap = r - 2.0
+    f1 = f2 = f3 = f4 = g1 = g2 = g3 = g4 = f_par = f_perp = f_x = 0.0
+    if gap < grid[4] or r > grid[3]:
+        e_par, e_perp, e_x = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
+        if want_icep:
+            f1, f2, f3, f4 = near_field_stress_kernel(
+                r, 0, stress_grid, stress_coefficients, stress_asymptotics
+            )
+        if want_dep:
+            g1, g2, g3, g4 = near_field_stress_kernel(
+                r, 1, stress_grid, stress_coefficients, stress_asymptotics
+            )
+            f_par, f_perp, f_x = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
+        return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
+    s = math.log(gap)
+    k = min(max(int((s - grid[0]) / grid[1]), 0), int(grid[2]) - 2)
+    h = s - (grid[0] + k * grid[1])
+    e_par = e_perp = e_x = 0.0
+    if near_code != 1:
+        e_par += _cubic(coefficients, 0, k, h)
+        e_perp += _cubic(coefficients, 1, k, h)
+        e_x += _cubic(coefficients, 2, k, h)
+    if near_code != 0:
+        e_par += _cubic(coefficients, 3, k, h)
+        e_perp += _cubic(coefficients, 4, k, h)
+        e_x += _cubic(coefficients, 5, k, h)
+    if want_icep:
+        f1 += _cubic(stress_coefficients, 0, k, h)
+        f2 += _cubic(stress_coefficients, 1, k, h)
+        f3 += _cubic(stress_coefficients, 2, k, h)
+        f4 += _cubic(stress_coefficients, 3, k, h)
+    if want_dep:
+        g2 += _cubic(stress_coefficients, 4, k, h)
+        g3 += _cubic(stress_coefficients, 5, k, h)
+        g4 += _cubic(stress_coefficients, 6, k, h)
+        f_par = _cubic(stress_coefficients, 7, k, h)
+        f_perp = _cubic(stress_coefficients, 8, k, h)
+        f_x = _cubic(stress_coefficients, 9, k, h)
+    return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
+
+
+@njit(cache=True)
 def _add_basis(
     out: np.ndarray, factor: float, f1: float, f2: float, f3: float, f4: float, xh: np.ndarray, e: np.ndarray
 ) -> None:
@@ -143,7 +206,11 @@ def add_near_field_corrections(
             xh[c] = -separations[k, c] / r  # separations are x_j - x_i; alpha = i, xh from j to i
         c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
         # velocity: w (exact - far) in the isotropic form, U_j = -U_i
-        exact_par, exact_perp, exact_x = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
+        want_icep = icep_weight > 0.0
+        want_dep = dep_weight > 0.0
+        (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
+            _pair_functions(r, near_code, want_icep, want_dep, tables)
+        )
         far_par, far_perp, far_x = far_field_functions(r, far_code)
         radial = (exact_par - far_par) * c * c + (exact_perp - far_perp) * (1.0 - c * c)
         tangential = 2.0 * (exact_x - far_x) * c
@@ -153,10 +220,7 @@ def add_near_field_corrections(
             velocity[j, m] -= du
         # stresses; table units pi eps a^3 E0^2 (stresslets) and pi eps a^2 E0^2 (forces)
         scale = math.pi * w / volume
-        if icep_weight > 0.0:
-            f1, f2, f3, f4 = near_field_stress_kernel(
-                r, 0, stress_grid, stress_coefficients, stress_asymptotics
-            )
+        if want_icep:
             inv_r3 = 1.0 / (r * r * r)  # minus physics.md's far field 9 T1 - 36 T2 - 22.5 T3 + 112.5 T4
             _add_basis(
                 icep_stress,
@@ -168,12 +232,8 @@ def add_near_field_corrections(
                 xh,
                 e,
             )
-        if dep_weight > 0.0:
-            g1, g2, g3, g4 = near_field_stress_kernel(
-                r, 1, stress_grid, stress_coefficients, stress_asymptotics
-            )
+        if want_dep:
             _add_basis(dep_stresslet, 2.0 * scale, g1, g2, g3, g4, xh, e)
-            f_par, f_perp, f_x = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
             inv_r4 = 1.0 / (r * r * r * r)  # far field F = -3 W / r^4, W = (5c^2 - 1) xh - 2 c e
             force_radial = f_par * c * c + f_perp * (1.0 - c * c) + 3.0 * inv_r4 * (5.0 * c * c - 1.0)
             force_tangential = 2.0 * f_x * c
