@@ -15,6 +15,7 @@ from sim.config import SimulationConfig
 from sim.figures import plot_rheology
 from sim.simulation import Simulation, StepRecords
 from sim.state import SimulationState
+from sim.stepper import stop_time
 
 COMPILE_NOTICE = "compiling kernels (first run only, about a minute)..."
 """Printed to stderr before a run whose compiled kernels are not in numba's cache yet."""
@@ -85,7 +86,7 @@ def _load_resumable(
             f"{listed}; only {_name('strain', names)} may differ (to extend a run)"
         )
     last_start = float(records.strain[-1]) if records.strain.size else -math.inf
-    if last_start >= config.strain - 1e-9 * config.time_step:  # a run to config.strain stops before it
+    if last_start >= stop_time(config.strain, config.time_step):  # a run to config.strain stops before it
         strain = _name("strain", names)
         raise ValueError(
             f"{resume}: the checkpoint in {checkpoint.parent} has already run past {strain}="

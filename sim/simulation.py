@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -19,7 +19,7 @@ from sim.geometry.configurations import random_packing
 from sim.observables.stress import N_CONTRIBUTIONS, STRESS_CONTRIBUTIONS, block_average, rheology
 from sim.state import SimulationState
 from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters
-from sim.stepper import STATUS_MESSAGES, STATUS_OK, advance
+from sim.stepper import STATUS_MESSAGES, STATUS_OK, advance, stop_time
 
 
 class SimulationError(RuntimeError):
@@ -189,27 +189,24 @@ class Simulation:
             mason_number: ``Mn = eta gammadot / (eps E0^2)`` in (0, inf]; ``inf`` switches the field off
                 (not allowed in a quiescent run, where the field sets the units).
             direction: field direction (three finite numbers, not all zero; normalised here); None keeps
-                the current direction.
+                the current direction. Both are validated by :class:`~sim.config.SimulationConfig`
+                (which also checks the box against the near-field cut-off when the field is on); nothing
+                changes when they are refused.
 
         Raises:
             ValueError: naming the parameter and its valid range.
         """
-        mn = mason_number
-        if isinstance(mn, bool) or not isinstance(mn, int | float | np.floating) or not (mn > 0):
-            raise ValueError(f"mason_number must be in (0, inf], got {mason_number!r}")
-        if self.config.quiescent and math.isinf(mn):
-            raise ValueError(
-                "mason_number must be finite in a quiescent run (shear_rate = 0): the field sets the units"
-            )
-        if direction is not None:
-            e = np.asarray(direction, dtype=np.float64).reshape(-1)
-            norm = float(np.linalg.norm(e)) if e.size == 3 and np.all(np.isfinite(e)) else 0.0
-            if norm == 0.0:
-                raise ValueError(f"direction must be three finite numbers, not all zero, got {direction!r}")
-            self.state.field_direction = e / norm
-        if not math.isinf(mn):
-            self.config.check_near_field_box()
-        self.state.mason_number = float(mn)
+        if isinstance(mason_number, np.floating):
+            mason_number = float(mason_number)
+        current = self.state.field_direction if direction is None else direction
+        # the configuration's own checks (range, quiescent runs, direction, box for the near field)
+        checked = replace(
+            self.config,
+            mason_number=mason_number,
+            field_direction=tuple(current),  # type: ignore[arg-type]
+        )
+        self.state.field_direction = np.array(checked.field_direction, dtype=np.float64)
+        self.state.mason_number = float(checked.mason_number)
 
     @property
     def field(self) -> tuple[float, np.ndarray]:
@@ -302,7 +299,7 @@ class Simulation:
         if isinstance(chunk_steps, bool) or int(chunk_steps) != chunk_steps or chunk_steps < 1:
             raise ValueError(f"chunk_steps must be an integer >= 1, got {chunk_steps!r}")
         parts = []
-        while self.state.strain < strain - 1e-9 * self.config.time_step:
+        while self.state.strain < stop_time(float(strain), self.config.time_step):
             parts.append(self._step(int(chunk_steps), float(strain)))
             if on_chunk is not None:
                 on_chunk(self)

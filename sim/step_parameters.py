@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim.config import MECHANISMS, SimulationConfig
+from sim.config import SimulationConfig
 from sim.contacts.repulsion import repulsion_scale
 from sim.dipolophoresis.ewald import EwaldPlan, ewald_plan
 from sim.dipolophoresis.near_field import NEAR_FIELD_ASYMPTOTICS, NEAR_FIELD_COEFFICIENTS, NEAR_FIELD_GRID
@@ -159,8 +159,6 @@ def field_parameters(
         direction: (3,) unit field direction.
         plan: the run's Ewald plan (:func:`sim.dipolophoresis.ewald.ewald_plan`).
     """
-    if config.mechanism not in MECHANISMS:  # guarded by the config; kept for direct callers
-        raise ValueError(f"mechanism must be one of {MECHANISMS}, got {config.mechanism!r}")
     return FieldParameters(
         strength=field_strength(mason_number, config.shear_rate),
         direction=np.ascontiguousarray(direction, dtype=np.float64),

@@ -49,6 +49,7 @@ from sim.integrators import shift_crossed_velocities, variable_step_adams_bashfo
 from sim.observables.stress import (
     DEP_STRESSLET,
     DEP_VIRIAL,
+    DIPOLOPHORESIS_CONTRIBUTIONS,
     ICEP_ISOLATED,
     ICEP_PAIR,
     LUBRICATION,
@@ -160,7 +161,7 @@ def dipolophoresis_term(
         (N, 3) ``U^d`` in simulation units.
     """
     n = positions.shape[0]
-    for k in (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL, DEP_STRESSLET):
+    for k in DIPOLOPHORESIS_CONTRIBUTIONS:
         stress[k, :, :] = 0.0
     if field.strength == 0.0:
         return np.zeros((n, 3))
@@ -221,6 +222,14 @@ def evaluate(
         for c in range(3):
             velocity[p, c] += dip_velocity[p, c]
     return velocity, disturbance, dip_velocity, stress, min_gap, iterations
+
+
+@njit(cache=True)
+def stop_time(end_time: float, max_time_step: float) -> float:
+    """The clock at or beyond which a run to ``end_time`` is over: ``end_time`` less ``1e-9`` of a step,
+    so that rounding in the accumulated clock never adds a step. One rule for the step loop
+    (:func:`advance`), :meth:`sim.Simulation.advance_to` and the resume checks of :mod:`sim.run`."""
+    return end_time - 1e-9 * max_time_step
 
 
 @njit(cache=True)
@@ -288,8 +297,8 @@ def advance(
     guess = np.empty_like(warm_start)
     status = STATUS_OK
     done = 0
-    stop_time = end_time - 1e-9 * params.max_time_step
-    while done < max_steps and time < stop_time:
+    stop = stop_time(end_time, params.max_time_step)
+    while done < max_steps and time < stop:
         if stored_solutions >= 2 and step_history[1] > 0.0:
             ratio = step_history[0] / step_history[1]
             for p in range(n):

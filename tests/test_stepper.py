@@ -14,7 +14,7 @@ from sim.contacts.repulsion import repulsion_scale
 from sim.hydrodynamics.resistance_functions import lubrication_scalars
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
 from sim.io import load_checkpoint, save_checkpoint
-from sim.observables.stress import LUBRICATION, REPULSION, STRESS_CONTRIBUTIONS
+from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, LUBRICATION, REPULSION, STRESS_CONTRIBUTIONS
 from sim.step_parameters import step_parameters
 from sim.stepper import choose_time_step
 
@@ -126,6 +126,7 @@ def test_field_api_validation() -> None:
     small = Simulation(SimulationConfig(n_particles=20, volume_fraction=0.2))  # fine without a field ...
     with pytest.raises(ValueError, match="near_field_cutoff"):
         small.set_field(1.0)  # ... but too small a box for the exact near field
+    assert np.isinf(small.field[0]) and np.array_equal(small.field[1], [0.0, 1.0, 0.0])  # nothing changed
     quiescent = Simulation(
         SimulationConfig(n_particles=40, volume_fraction=0.2, mason_number=1.0, shear_rate=0)
     )
@@ -137,8 +138,12 @@ def test_field_off_gives_no_dipolophoresis() -> None:
     """Mn = inf: U^d and the three DIP stress contributions are exactly zero."""
     sim = Simulation(SimulationConfig(n_particles=30, volume_fraction=0.3, seed=3))
     records = sim.advance(5)
-    dip = [
-        STRESS_CONTRIBUTIONS.index(k) for k in ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
+    dip = list(DIPOLOPHORESIS_CONTRIBUTIONS)
+    assert [STRESS_CONTRIBUTIONS[k] for k in dip] == [
+        "icep_isolated",
+        "icep_pair",
+        "dep_virial",
+        "dep_stresslet",
     ]
     assert np.all(records.stress[:, dip] == 0.0) and np.all(records.u_rms_dip == 0.0)
 

@@ -26,13 +26,14 @@ from pathlib import Path
 import pytest
 
 from sim.config import SimulationConfig
+from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, SHEAR_CONTRIBUTIONS, STRESS_CONTRIBUTIONS
 from sim.sweep import run_sweep
 
 VOLUME_FRACTIONS = {"none": (0.30, 0.45), "exact": (0.15, 0.30, 0.45)}
 MASON_NUMBERS = (0.1, 1.0, 10.0, math.inf)
 OUT = Path(__file__).resolve().parents[1] / "runs" / "validation_dip"
-SHEAR_PARTS = ("solvent", "stokes_drag", "lubrication", "repulsion")
-DIP_PARTS = ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
+SHEAR_PARTS = tuple(STRESS_CONTRIBUTIONS[k] for k in SHEAR_CONTRIBUTIONS)
+DIP_PARTS = tuple(STRESS_CONTRIBUTIONS[k] for k in DIPOLOPHORESIS_CONTRIBUTIONS)
 
 
 def _part(result: dict, names: tuple[str, ...], key: str) -> float:

@@ -49,7 +49,12 @@ from numba import njit
 
 from sim.dipolophoresis.far_field import MECHANISM_DEP, MECHANISM_DIP, MECHANISM_ICEP, far_field_functions
 from sim.dipolophoresis.near_field import near_field_kernel
-from sim.dipolophoresis.near_field_stress import dep_force_kernel, near_field_stress_kernel
+from sim.dipolophoresis.near_field_stress import (
+    ICEP_PAIR_FAR_FIELD,
+    add_basis,
+    dep_force_kernel,
+    near_field_stress_kernel,
+)
 from sim.geometry.neighbors import build_pair_list
 
 
@@ -139,24 +144,6 @@ def _pair_functions(
 
 
 @njit(cache=True)
-def _add_basis(
-    out: np.ndarray, factor: float, f1: float, f2: float, f3: float, f4: float, xh: np.ndarray, e: np.ndarray
-) -> None:
-    """``out += factor (f1 T1 + f2 T2 + f3 T3 + f4 T4)`` with the traceless basis of
-    :mod:`sim.dipolophoresis.near_field_stress` (``T1 = ee - I/3``, ``T2 = c (e xh + xh e) - (2/3) c^2 I``,
-    ``T3 = xh xh - I/3``, ``T4 = c^2 (xh xh - I/3)``)."""
-    c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
-    radial = f3 + f4 * c * c
-    trace = -(f1 + 2.0 * f2 * c * c + radial) / 3.0
-    for i in range(3):
-        for j in range(3):
-            v = f1 * e[i] * e[j] + f2 * c * (e[i] * xh[j] + xh[i] * e[j]) + radial * xh[i] * xh[j]
-            if i == j:
-                v += trace
-            out[i, j] += factor * v
-
-
-@njit(cache=True)
 def add_near_field_corrections(
     positions: np.ndarray,
     box_length: float,
@@ -190,11 +177,13 @@ def add_near_field_corrections(
     Returns:
         The number of pairs closer than ``r_cut``.
     """
-    grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = tables
     near_code, far_code = mechanism_codes(icep_weight, dep_weight)
+    want_icep = icep_weight > 0.0
+    want_dep = dep_weight > 0.0
     pairs, separations = build_pair_list(positions, box_length, offset, r_cut)
     volume = box_length**3
     xh = np.empty(3)
+    d_force = np.empty(3)
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -202,12 +191,10 @@ def add_near_field_corrections(
         w = blend_weight(r, r_cut, width)
         if w == 0.0:
             continue
-        for c in range(3):
-            xh[c] = -separations[k, c] / r  # separations are x_j - x_i; alpha = i, xh from j to i
+        for m in range(3):
+            xh[m] = -separations[k, m] / r  # separations are x_j - x_i; alpha = i, xh from j to i
         c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
         # velocity: w (exact - far) in the isotropic form, U_j = -U_i
-        want_icep = icep_weight > 0.0
-        want_dep = dep_weight > 0.0
         (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
             _pair_functions(r, near_code, want_icep, want_dep, tables)
         )
@@ -220,30 +207,29 @@ def add_near_field_corrections(
             velocity[j, m] -= du
         # stresses; table units pi eps a^3 E0^2 (stresslets) and pi eps a^2 E0^2 (forces)
         scale = math.pi * w / volume
-        if want_icep:
-            inv_r3 = 1.0 / (r * r * r)  # minus physics.md's far field 9 T1 - 36 T2 - 22.5 T3 + 112.5 T4
-            _add_basis(
+        if want_icep:  # exact minus physics.md's far-field pair correction (already in the Ewald sum)
+            inv_r3 = 1.0 / (r * r * r)
+            far1, far2, far3, far4 = ICEP_PAIR_FAR_FIELD
+            add_basis(
                 icep_stress,
                 2.0 * scale,
-                f1 - 9.0 * inv_r3,
-                f2 + 36.0 * inv_r3,
-                f3 + 22.5 * inv_r3,
-                f4 - 112.5 * inv_r3,
+                f1 - far1 * inv_r3,
+                f2 - far2 * inv_r3,
+                f3 - far3 * inv_r3,
+                f4 - far4 * inv_r3,
                 xh,
                 e,
             )
         if want_dep:
-            _add_basis(dep_stresslet, 2.0 * scale, g1, g2, g3, g4, xh, e)
+            add_basis(dep_stresslet, 2.0 * scale, g1, g2, g3, g4, xh, e)
             inv_r4 = 1.0 / (r * r * r * r)  # far field F = -3 W / r^4, W = (5c^2 - 1) xh - 2 c e
             force_radial = f_par * c * c + f_perp * (1.0 - c * c) + 3.0 * inv_r4 * (5.0 * c * c - 1.0)
             force_tangential = 2.0 * f_x * c
-            for a in range(3):
-                d_force_a = (
-                    force_radial * xh[a] + force_tangential * (e[a] - c * xh[a]) - 6.0 * inv_r4 * c * e[a]
+            for m in range(3):  # F^exact_alpha - F^far_alpha
+                d_force[m] = (
+                    force_radial * xh[m] + force_tangential * (e[m] - c * xh[m]) - 6.0 * inv_r4 * c * e[m]
                 )
+            for a in range(3):
                 for b in range(3):
-                    d_force_b = (
-                        force_radial * xh[b] + force_tangential * (e[b] - c * xh[b]) - 6.0 * inv_r4 * c * e[b]
-                    )
-                    dep_virial[a, b] -= 0.5 * scale * r * (xh[a] * d_force_b + xh[b] * d_force_a)
+                    dep_virial[a, b] -= 0.5 * scale * r * (xh[a] * d_force[b] + xh[b] * d_force[a])
     return pairs.shape[0]

@@ -247,20 +247,33 @@ def dep_force_kernel(
     )
 
 
+ICEP_PAIR_FAR_FIELD: Final = (9.0, -36.0, -22.5, 112.5)
+"""``r^3 (f1, f2, f3, f4)`` of physics.md's far-field ICEP pair correction
+``dS = r^-3 [9 ee - 36 c (e xh + xh e) + (225/2 c^2 - 45/2) xh xh + (9/2 - 27/2 c^2) I]`` in this basis."""
+
+
 @njit(cache=True)
-def _assemble(
-    f1: float, f2: float, f3: float, f4: float, xh: FloatArray, e: FloatArray, c: float
-) -> FloatArray:
-    """``f1 T1 + f2 T2 + f3 T3 + f4 T4``, shape ``(3, 3)``."""
-    out = np.empty((3, 3))
-    trace_part = -f1 / 3.0 - (2.0 / 3.0) * f2 * c * c - (f3 + f4 * c * c) / 3.0
+def add_basis(
+    out: FloatArray, factor: float, f1: float, f2: float, f3: float, f4: float, xh: FloatArray, e: FloatArray
+) -> None:
+    """``out += factor (f1 T1 + f2 T2 + f3 T3 + f4 T4)``, ``out`` shape ``(3, 3)``, with ``T1 = ee - I/3``,
+    ``T2 = c (e xh + xh e) - (2/3) c^2 I``, ``T3 = xh xh - I/3``, ``T4 = c^2 (xh xh - I/3)``, ``c = e.xh``."""
+    c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
+    radial = f3 + f4 * c * c
+    trace = -(f1 + 2.0 * f2 * c * c + radial) / 3.0
     for i in range(3):
-        for j in range(i, 3):
-            v = f1 * e[i] * e[j] + f2 * c * (e[i] * xh[j] + xh[i] * e[j]) + (f3 + f4 * c * c) * xh[i] * xh[j]
+        for j in range(3):
+            v = f1 * e[i] * e[j] + f2 * c * (e[i] * xh[j] + xh[i] * e[j]) + radial * xh[i] * xh[j]
             if i == j:
-                v += trace_part
-            out[i, j] = v
-            out[j, i] = v
+                v += trace
+            out[i, j] += factor * v
+
+
+@njit(cache=True)
+def _assemble(f1: float, f2: float, f3: float, f4: float, xh: FloatArray, e: FloatArray) -> FloatArray:
+    """``f1 T1 + f2 T2 + f3 T3 + f4 T4``, shape ``(3, 3)`` (:func:`add_basis`)."""
+    out = np.zeros((3, 3))
+    add_basis(out, 1.0, f1, f2, f3, f4, xh, e)
     return out
 
 
@@ -290,9 +303,9 @@ def pair_stress_tensors(
     """
     c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
     f1, f2, f3, f4 = near_field_stress_kernel(r, 0, grid, coefficients, asymptotics)
-    icep = _assemble(f1, f2, f3, f4, xh, e, c)
+    icep = _assemble(f1, f2, f3, f4, xh, e)
     g1, g2, g3, g4 = near_field_stress_kernel(r, 1, grid, coefficients, asymptotics)
-    dep = _assemble(g1, g2, g3, g4, xh, e, c)
+    dep = _assemble(g1, g2, g3, g4, xh, e)
     f_par, f_perp, f_x = dep_force_kernel(r, grid, coefficients, asymptotics)
     radial = f_par * c * c + f_perp * (1.0 - c * c)
     force = np.empty(3)
@@ -320,7 +333,8 @@ def pair_stress_corrections(
     icep, dep, force = pair_stress_tensors(xh, e, r, grid, coefficients, asymptotics)
     c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
     inv_r3 = 1.0 / (r * r * r)
-    far = _assemble(9.0 * inv_r3, -36.0 * inv_r3, -22.5 * inv_r3, 112.5 * inv_r3, xh, e, c)
+    f1, f2, f3, f4 = ICEP_PAIR_FAR_FIELD
+    far = _assemble(f1 * inv_r3, f2 * inv_r3, f3 * inv_r3, f4 * inv_r3, xh, e)
     inv_r4 = inv_r3 / r
     for i in range(3):
         force[i] += 3.0 * inv_r4 * ((5.0 * c * c - 1.0) * xh[i] - 2.0 * c * e[i])

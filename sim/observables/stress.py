@@ -58,7 +58,9 @@ ICEP_PAIR = 5
 DEP_VIRIAL = 6
 DEP_STRESSLET = 7
 SHEAR_CONTRIBUTIONS = (SOLVENT, STOKES_DRAG, LUBRICATION, REPULSION)
+"""Indices of the shear-flow and repulsion contributions."""
 DIPOLOPHORESIS_CONTRIBUTIONS = (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL, DEP_STRESSLET)
+"""Indices of the dipolophoresis contributions (all zero when the field is off)."""
 N_CONTRIBUTIONS = len(STRESS_CONTRIBUTIONS)
 
 
