@@ -60,6 +60,14 @@ BAD_INPUTS = [
     (["--n-particles", "60000"], "--n-particles must be an integer in [2, 50000]"),
     (["--n-particles", "2.5"], "argument --n-particles: invalid int value: '2.5'"),
     (["--n-particles", "5", "--phi", "0.5"], "--n-particles=5 is too small for --phi=0.5"),
+    (["--near-field-cutoff", "20"], "--near-field-cutoff must be in (2.5, 10.0], got 20.0"),
+    (
+        ["--near-field-cutoff", "5", "--n-particles", "64", "--phi", "0.45", "--mason", "1"],
+        "--near-field-cutoff=5.0 needs a box side above 10.0 a",
+    ),
+    (["--near-field", "approx"], "argument --near-field: invalid choice: 'approx'"),
+    (["--max-displacement", "0"], "--max-displacement must be in (0.0, 0.05], got 0.0"),
+    (["--ewald-accuracy", "1"], "--ewald-accuracy must be in [1e-12, 0.01], got 1.0"),
     (["--strain", "-1"], "--strain must be > 0 for a run, got -1.0"),
     (["--strain", "0"], "--strain must be > 0 for a run, got 0.0"),  # was exit 0 with eta_r = nan
     (["--strain", "nan"], "--strain must be > 0 for a run, got nan"),
