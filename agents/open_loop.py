@@ -90,10 +90,11 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
 
         action += list(action_from_direction(DIRECTIONS[payload["direction"]]))
     key = unwrapped.library().key
+    identity = _identity(payload, key, unwrapped.settings())
     path = Path(payload["path"])
     if path.exists():
         old = read_json(path)
-        if old.get("identity") == _identity(payload, key):
+        if _finite(old.get("identity")) == identity:  # read_json turned "inf" back into floats
             return old
     episodes = []
     for index in range(payload["episodes"]):
@@ -101,7 +102,7 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
         episodes.append({**trace.summary(), "trace": trace.to_dict()})
     env.close()
     record = {
-        "identity": _identity(payload, key),
+        "identity": identity,
         "label": payload["label"],
         "mason_number": payload["mason_number"],
         "direction": payload["direction"],
@@ -112,10 +113,13 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
-def _identity(payload: dict[str, Any], library_key: str) -> dict[str, Any]:
-    """What a point's result depends on (a stored point is reused only if this matches)."""
+def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any]) -> dict[str, Any]:
+    """What a point's result depends on (a stored point is reused only if this matches): the command's
+    arguments and the env's resolved settings (``FieldControlEnv.settings``), so a changed default of the
+    env is not silently reused."""
     return _finite(
         {
+            "env_settings": settings,
             "env_id": payload["env_id"],
             "env_kwargs": payload["env_kwargs"],
             "split": payload["split"],

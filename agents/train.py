@@ -105,7 +105,17 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     env_id, algo, seed = payload["env_id"], payload["algo"], int(payload["seed"])
     env_kwargs = dict(payload["env_kwargs"])
     hp = dict(payload["hyperparams"])
-    identity = {"env_id": env_id, "env_kwargs": env_kwargs, "algo": algo, "seed": seed, "hyperparams": hp}
+    settings_env = make_env(env_id, {**env_kwargs, "progress": False})
+    settings = settings_env.unwrapped.settings()  # type: ignore[attr-defined]
+    settings_env.close()
+    identity = {
+        "env_id": env_id,
+        "env_kwargs": env_kwargs,
+        "env_settings": settings,  # resolved defaults: a changed env default is a different run
+        "algo": algo,
+        "seed": seed,
+        "hyperparams": hp,
+    }
     comparable = {**identity, "hyperparams": {k: v for k, v in hp.items() if k != "n_timesteps"}}
     config_file = out / "config.yml"
     if config_file.exists():
