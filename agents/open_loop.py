@@ -12,7 +12,9 @@ and start-state library, so the command is resumable. Then it writes ``pareto.cs
 states, field energy ``<1/Mn>``, return, and whether the point is on the Pareto front of low ``eta_r``
 and low energy), ``best_constant.json`` (the point with the highest mean return: the best constant
 policy for the reward in use, chosen on the same start states, which favours the baseline) and
-``pareto.png``.
+``pareto.png``. The stored points keep every interval's ``eta_r`` and field energy, so a rerun with
+another reward (``target_viscosity`` or ``energy_weight`` in ``--env-kwargs``, or a changed default)
+rescores them without simulating again.
 """
 
 from __future__ import annotations
@@ -31,6 +33,9 @@ from agents.tasks import run_tasks
 
 DIRECTIONS = {"y": (0.0, 1.0, 0.0), "x": (1.0, 0.0, 0.0), "z": (0.0, 0.0, 1.0), "xy": (1.0, 1.0, 0.0)}
 """Named directions for ``--directions`` (``xy``: 45 degrees in the shear plane)."""
+
+RESCORED_KWARGS = ("target_viscosity", "energy_weight")
+"""Environment arguments that only change the reward: stored points are rescored, not rerun, for them."""
 
 DEFAULT_MASON = ("off", 20.0, 5.0, 2.0, 1.0, 0.5, 0.2, 0.1, 0.05)
 
@@ -90,12 +95,17 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
 
         action += list(action_from_direction(DIRECTIONS[payload["direction"]]))
     key = unwrapped.library().key
-    identity = _identity(payload, key, unwrapped.settings())
+    settings = unwrapped.settings()
+    # The physics (and the failure penalty, which a stored failed step keeps): the returns are rescored
+    # below for the reward in use.
+    settings["failure_penalty"] = settings.pop("reward")["failure_penalty"]
+    identity = _identity(payload, key, settings)
     path = Path(payload["path"])
     if path.exists():
         old = read_json(path)
         if _finite(old.get("identity")) == identity:  # read_json turned "inf" back into floats
-            return old
+            env.close()
+            return rescore(old, unwrapped.reward_function)
     episodes = []
     for index in range(payload["episodes"]):
         trace = run_episode(env, constant_policy(action), payload["split"], index)
@@ -113,15 +123,34 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
+def rescore(record: dict[str, Any], reward: Any) -> dict[str, Any]:
+    """``record`` with every episode's per-step rewards and return recomputed by ``reward``
+    (a :class:`dipenv.rewards.ViscosityTargetReward`) from its stored ``eta_r`` and field energy.
+
+    A constant-field point's physics does not depend on the reward, so one run serves any target or
+    energy weight. The failure reward of a failed episode (its last entry) is kept as stored.
+    """
+    for episode in record["episodes"]:
+        trace = episode["trace"]
+        rewards = [
+            reward(eta, energy)[0] for eta, energy in zip(trace["eta_r"], trace["field_energy"], strict=True)
+        ]
+        if trace["failed"]:
+            rewards.append(trace["reward"][-1])
+        trace["reward"] = rewards
+        episode["return"] = float(np.sum(rewards))
+    return record
+
+
 def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any]) -> dict[str, Any]:
     """What a point's result depends on (a stored point is reused only if this matches): the command's
-    arguments and the env's resolved settings (``FieldControlEnv.settings``), so a changed default of the
-    env is not silently reused."""
+    arguments and the env's resolved physical settings (``FieldControlEnv.settings`` less the reward),
+    so a changed default of the env is not silently reused."""
     return _finite(
         {
             "env_settings": settings,
             "env_id": payload["env_id"],
-            "env_kwargs": payload["env_kwargs"],
+            "env_kwargs": {k: v for k, v in payload["env_kwargs"].items() if k not in RESCORED_KWARGS},
             "split": payload["split"],
             "episodes": payload["episodes"],
             "mason_number": payload["mason_number"],

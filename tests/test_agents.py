@@ -72,6 +72,19 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     stamp = (baseline / "points" / "Mn1.json").stat().st_mtime_ns
     open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1"])
     assert (baseline / "points" / "Mn1.json").stat().st_mtime_ns == stamp  # resumed, not recomputed
+    # Another reward rescores the stored intervals (no new simulation): r = -|eta - 3| - 0.5 <1/Mn> per
+    # interval, recomputed here by hand from the stored traces (exact up to summation order).
+    kwargs = ["--env-kwargs", '{"target_viscosity": 3.0, "energy_weight": 0.5}']
+    rescored = open_loop.main(
+        ["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1", *kwargs]
+    )
+    assert (baseline / "points" / "Mn1.json").stat().st_mtime_ns == stamp
+    trace = json.loads((baseline / "points" / "Mn1.json").read_text())["episodes"][0]["trace"]
+    by_hand = sum(
+        -abs(eta - 3.0) - 0.5 * e for eta, e in zip(trace["eta_r"], trace["field_energy"], strict=True)
+    )
+    assert next(r for r in rescored if r["label"] == "Mn1")["return"] == pytest.approx(by_hand, rel=1e-12)
+    assert by_hand != pytest.approx(next(r for r in rows if r["label"] == "Mn1")["return"], rel=1e-3)
 
     ppo = tmp_path / "ppo"
     common = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress"]

@@ -212,7 +212,9 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         """Every resolved setting that shapes an episode (JSON-ready), defaults included.
 
         Stored next to results made with this env (open-loop points, training runs) so that a result is
-        reused only for the same settings, even when a default changes between versions.
+        reused only for the same settings, even when a default changes between versions. The reward's
+        parameters sit under ``"reward"``: they do not change the physics, so results that keep their
+        per-step ``eta_r`` and field energy (open-loop points) can be rescored instead of rerun.
         """
         config = self.base_config.to_dict()
         for name in ("seed", "strain", "transient_strain", "checkpoint_every", "n_blocks"):
@@ -227,9 +229,11 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             "off_band": self.mapping.off_band,
             "actuator_time_constant": self.actuator.time_constant,
             "actuator_substeps": self.actuator.substeps,
-            "target_viscosity": self.reward_function.target_viscosity,
-            "energy_weight": self.energy_weight,
-            "failure_penalty": self.failure_penalty,
+            "reward": {
+                "target_viscosity": self.reward_function.target_viscosity,
+                "energy_weight": self.energy_weight,
+                "failure_penalty": self.failure_penalty,
+            },
             "history_length": self.history_length,
             "preshear_strain": self.preshear_strain,
         }
