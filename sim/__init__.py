@@ -16,12 +16,21 @@ from sim.config import MECHANISMS, NEAR_FIELD_MODELS, SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
 from sim.io import versions
+from sim.observables.diffusion import (
+    MsdAccumulator,
+    accumulate_displacement,
+    diffusivity_fit_window,
+    fit_diffusivity,
+    mean_square_displacement,
+)
 from sim.observables.interparticle_stress import InterparticleStress, interparticle_stress
 from sim.observables.microstructure import angular_pair_distribution, contact_number, fabric_tensor
+from sim.observables.pair_distribution import PairDistributionAccumulator, pair_histograms
 from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
 from sim.run import run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
 from sim.state import SimulationState
+from sim.tasks import TaskFailure, parse_seeds, run_tasks
 
 __all__ = [
     "MECHANISMS",
@@ -48,4 +57,14 @@ __all__ = [
     "angular_pair_distribution",
     "contact_number",
     "fabric_tensor",
+    "MsdAccumulator",
+    "PairDistributionAccumulator",
+    "TaskFailure",
+    "accumulate_displacement",
+    "diffusivity_fit_window",
+    "fit_diffusivity",
+    "mean_square_displacement",
+    "pair_histograms",
+    "parse_seeds",
+    "run_tasks",
 ]

@@ -1,20 +1,33 @@
 """Command line of the simulator.
 
     python -m sim run --phi 0.40 --n-particles 200 --mason inf --strain 30 --seed 1 --out DIR [--json]
+    python -m sim sweep --phi 0.15,0.30,0.45 --mason 0.1,1,10,inf --seeds 3 --out DIR [--workers 2]
+    python -m sim sweep --spec sweep.yml --out DIR        (or --preset small)
+    python -m sim figures DIR [--out FIGURES]
 
-Exit status 0 on success, 2 on bad input (``python -m sim run: error: ...`` after ``run``'s usage; the
-message names the flag and its valid range), 1 when the simulation itself fails. With ``--json`` the last
-line on stdout is one JSON object (``result.json``).
+``run`` and ``sweep`` share one table of simulation options (:data:`SIMULATION_OPTIONS`); in ``sweep``
+``--phi``, ``--n-particles``, ``--mason`` and ``--mechanism`` take comma lists (the sweep is their
+cartesian product with ``--seeds``), the other options one value for every point.
+
+Exit status 0 on success, 2 on bad input (``python -m sim <command>: error: ...`` after the command's
+usage; the message names the flag and its valid range), 1 when a simulation fails (for ``sweep``: when
+any point failed; the others still run, and ``error.json`` in the failed point's folder holds the
+traceback), 130 when a sweep is interrupted (rerun the same command to resume it). With ``--json`` the
+last line on stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
 from typing import Any, NoReturn
 
 from sim.config import (
@@ -27,6 +40,7 @@ from sim.config import (
     SimulationConfig,
 )
 from sim.geometry.configurations import MAX_VOLUME_FRACTION, MIN_VOLUME_FRACTION
+from sim.tasks import parse_seeds
 
 FLAGS = {
     "n_particles": "--n-particles",
@@ -115,102 +129,286 @@ def _direction(text: str) -> tuple[float, float, float]:
     return (values[0], values[1], values[2])
 
 
+_KINDS: dict[Any, str] = {float: "a number", int: "an integer"}
+
+
+def _comma_list(
+    convert: Callable[[str], Any], choices: Sequence[str] | None = None
+) -> Callable[[str], list[Any]]:
+    """The ``sweep`` type of a listable option: ``a,b,c`` -> [convert(a), ...], distinct values."""
+
+    def parse(text: str) -> list[Any]:
+        values: list[Any] = []
+        for part in (p.strip() for p in text.split(",")):
+            if choices is not None and part not in choices:
+                raise argparse.ArgumentTypeError(
+                    f"invalid choice: {part!r} (choose from {', '.join(choices)})"
+                )
+            try:
+                value = convert(part)
+            except argparse.ArgumentTypeError as exc:
+                raise argparse.ArgumentTypeError(f"{exc} (in the list {text!r})") from None
+            except ValueError:
+                kind = _KINDS.get(convert, "a value")
+                raise argparse.ArgumentTypeError(
+                    f"must be a comma list of {kind.split(' ', 1)[1]}s, got {part!r} in {text!r}"
+                ) from None
+            if value in values:
+                raise argparse.ArgumentTypeError(f"{part!r} is listed twice in {text!r}")
+            values.append(value)
+        return values
+
+    parse.__name__ = f"list of {getattr(convert, '__name__', 'values')}"
+    return parse
+
+
+def _seed_list(text: str) -> list[int]:
+    """``--seeds``: a count (``3`` = seeds 1, 2, 3), or a list and ranges (``1,4``, ``0-4``, ``0,2,5-7``)."""
+    text = text.strip()
+    if text.isdigit():
+        count = int(text)
+        if count < 1:
+            raise argparse.ArgumentTypeError(
+                f"a count of seeds must be >= 1 (3 = seeds 1, 2, 3), got {text!r}"
+            )
+        return list(range(1, count + 1))
+    try:
+        return parse_seeds(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            "must be a count (3 = seeds 1, 2, 3), a list (1,4) or ranges (0-4, 0,2,5-7) of non-negative "
+            f"integers, got {text!r}"
+        ) from None
+
+
+def _workers(text: str) -> int:
+    """``--workers``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
+    return value
+
+
+def _scheduler(text: str) -> str:
+    """``--scheduler``: a Dask scheduler address, ``tcp://HOST:PORT`` (or another ``protocol://`` form)."""
+    if not re.fullmatch(r"[a-z][a-z0-9+.-]*://\S+", text):
+        raise argparse.ArgumentTypeError(
+            f"must be a Dask scheduler address like tcp://HOST:8786, got {text!r}"
+        )
+    return text
+
+
+@dataclass(frozen=True)
+class _Option:
+    """One simulation option of ``run`` and ``sweep``.
+
+    Attributes:
+        flag: the flag.
+        help: its help text (``%`` doubled, as argparse formats it).
+        type: converts one value.
+        default: the default (``sweep`` wraps it in a list when ``listable``).
+        choices: allowed values.
+        listable: in ``sweep``, the option takes a comma list of values (one point per value).
+        nargs_zero: a switch (``store_true``).
+    """
+
+    flag: str
+    help: str
+    type: Callable[[str], Any] | None = None
+    default: Any = None
+    choices: tuple[str, ...] | None = None
+    listable: bool = False
+    nargs_zero: bool = False
+
+
+SIMULATION_OPTIONS = (
+    _Option(
+        "--phi",
+        f"volume fraction in [{MIN_VOLUME_FRACTION}, {MAX_VOLUME_FRACTION}] (default 0.40)",
+        float,
+        0.40,
+        listable=True,
+    ),
+    _Option(
+        "--n-particles", f"number of spheres, in [2, {MAX_PARTICLES}] (default 200)", int, 200, listable=True
+    ),
+    _Option(
+        "--mason",
+        "Mason number eta*gammadot/(eps*E0^2) in (0, inf]; inf = no field, pure shear (default inf)",
+        _mason_number,
+        math.inf,
+        listable=True,
+    ),
+    _Option(
+        "--field-direction",
+        "electric field direction x,y,z (normalised; default 0,1,0)",
+        _direction,
+        (0.0, 1.0, 0.0),
+    ),
+    _Option(
+        "--mechanism",
+        "dipolophoresis mechanism: dip (ICEP + DEP), icep, or dep alone (default dip)",
+        str,
+        "dip",
+        choices=MECHANISMS,
+        listable=True,
+    ),
+    _Option(
+        "--shear-rate",
+        "1 (sheared) or 0 (quiescent: field only, needs a finite --mason) (default 1)",
+        _shear_rate,
+        1.0,
+    ),
+    _Option(
+        "--strain",
+        "run length, > 0: strain (time in units a/U0 with --shear-rate 0) (default 30)",
+        float,
+        30.0,
+    ),
+    _Option(
+        "--dt",
+        f"largest time step (steps may adapt below it), in (0, 0.05]; --strain/--dt at most {MAX_STEPS:.0e} "
+        f"(default {DEFAULT_TIME_STEP})",
+        float,
+        DEFAULT_TIME_STEP,
+    ),
+    _Option(
+        "--max-displacement",
+        "largest non-affine displacement per step as a fraction of the mean spacing, in (0, 0.05]; sets the "
+        f"adaptive step (default {DEFAULT_MAX_DISPLACEMENT}, the paper's 0.4%%)",
+        float,
+        DEFAULT_MAX_DISPLACEMENT,
+    ),
+    _Option(
+        "--near-field",
+        "dipolophoresis of close pairs: exact two-sphere functions blended into the far field, or none "
+        "(far-field kernels only) (default exact)",
+        str,
+        "exact",
+        choices=NEAR_FIELD_MODELS,
+    ),
+    _Option(
+        "--near-field-cutoff",
+        "centre distance (units a) below which the exact near field replaces the far field, in (2.5, 10] "
+        "and below half the box (default 4)",
+        float,
+        4.0,
+    ),
+    _Option(
+        "--ewald-accuracy",
+        "relative accuracy of the periodic far-field sums, in [1e-12, 1e-2] (default 1e-6)",
+        float,
+        1e-6,
+    ),
+    _Option(
+        "--transient",
+        "strain discarded before averaging, in [0, --strain) (default 10, or half of runs shorter than 20)",
+        float,
+        None,
+    ),
+    _Option(
+        "--out",
+        "output directory (created; must not be a file): the run's files, or one folder per sweep point "
+        "and sweep.json",
+    ),
+    _Option(
+        "--json",
+        "print the result as one JSON object on the last line (run: result.json; sweep: sweep.json)",
+        nargs_zero=True,
+    ),
+    _Option(
+        "--quiet", "no progress bar and no compile notice (sweep: nor a line per point)", nargs_zero=True
+    ),
+)
+"""The options ``run`` and ``sweep`` share, in the order of their help."""
+
+LISTABLE = tuple(option.flag for option in SIMULATION_OPTIONS if option.listable)
+"""Options that take comma lists in ``sweep``."""
+
+
+def _add_simulation_options(parser: argparse.ArgumentParser, lists: bool) -> None:
+    """Add :data:`SIMULATION_OPTIONS` to ``parser``; with ``lists`` the listable ones take comma lists."""
+    for option in SIMULATION_OPTIONS:
+        if option.nargs_zero:
+            parser.add_argument(option.flag, action="store_true", help=option.help)
+        elif lists and option.listable:
+            convert = option.type or str
+            parser.add_argument(
+                option.flag,
+                type=_comma_list(convert, option.choices),
+                default=[option.default],
+                metavar="LIST",
+                help=option.help + "; a comma list: one point per value",
+            )
+        else:
+            parser.add_argument(
+                option.flag,
+                type=option.type or str,
+                default=option.default,
+                choices=option.choices,
+                help=option.help,
+                required=option.flag == "--out" and not lists,
+            )
+
+
 def _add_run_arguments(run: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim run``."""
-    run.add_argument(
-        "--phi",
-        type=float,
-        default=0.40,
-        help=f"volume fraction in [{MIN_VOLUME_FRACTION}, {MAX_VOLUME_FRACTION}] (default 0.40)",
-    )
-    run.add_argument(
-        "--n-particles",
-        type=int,
-        default=200,
-        help=f"number of spheres, in [2, {MAX_PARTICLES}] (default 200)",
-    )
-    run.add_argument(
-        "--mason",
-        type=_mason_number,
-        default=math.inf,
-        help="Mason number eta*gammadot/(eps*E0^2) in (0, inf]; inf = no field, pure shear (default inf)",
-    )
-    run.add_argument(
-        "--field-direction",
-        type=_direction,
-        default=(0.0, 1.0, 0.0),
-        help="electric field direction x,y,z (normalised; default 0,1,0)",
-    )
-    run.add_argument(
-        "--mechanism",
-        choices=MECHANISMS,
-        default="dip",
-        help="dipolophoresis mechanism: dip (ICEP + DEP), icep, or dep alone (default dip)",
-    )
-    run.add_argument(
-        "--shear-rate",
-        type=_shear_rate,
-        default=1.0,
-        help="1 (sheared) or 0 (quiescent: field only, needs a finite --mason) (default 1)",
-    )
-    run.add_argument(
-        "--strain",
-        type=float,
-        default=30.0,
-        help="run length, > 0: strain (time in units a/U0 with --shear-rate 0) (default 30)",
-    )
+    _add_simulation_options(run, lists=False)
     run.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
-    run.add_argument(
-        "--dt",
-        type=float,
-        default=DEFAULT_TIME_STEP,
-        help=f"largest time step (steps may adapt below it), in (0, 0.05]; --strain/--dt at most "
-        f"{MAX_STEPS:.0e} (default {DEFAULT_TIME_STEP})",
-    )
-    run.add_argument(
-        "--max-displacement",
-        type=float,
-        default=DEFAULT_MAX_DISPLACEMENT,
-        help="largest non-affine displacement per step as a fraction of the mean spacing, in (0, 0.05]; "
-        f"sets the adaptive step (default {DEFAULT_MAX_DISPLACEMENT}, the paper's 0.4%%)",
-    )
-    run.add_argument(
-        "--near-field",
-        choices=NEAR_FIELD_MODELS,
-        default="exact",
-        help="dipolophoresis of close pairs: exact two-sphere functions blended into the far field, or "
-        "none (far-field kernels only) (default exact)",
-    )
-    run.add_argument(
-        "--near-field-cutoff",
-        type=float,
-        default=4.0,
-        help="centre distance (units a) below which the exact near field replaces the far field, in "
-        "(2.5, 10] and below half the box (default 4)",
-    )
-    run.add_argument(
-        "--ewald-accuracy",
-        type=float,
-        default=1e-6,
-        help="relative accuracy of the periodic far-field sums, in [1e-12, 1e-2] (default 1e-6)",
-    )
-    run.add_argument(
-        "--transient",
-        type=float,
-        default=None,
-        help="strain discarded before averaging, in [0, --strain) (default 10, or half of runs shorter "
-        "than 20)",
-    )
-    run.add_argument("--out", required=True, help="output directory (created; must not be a file)")
     run.add_argument(
         "--resume",
         action="store_true",
         help="continue from OUT/checkpoint.npz; only --strain may differ from that run (to extend it)",
     )
-    run.add_argument(
-        "--json", action="store_true", help="print the result as one JSON object on the last line"
+
+
+def preset_names() -> list[str]:
+    """Names of the packaged sweep presets (``sim/presets/<name>.yml``)."""
+    folder = resources.files("sim") / "presets"
+    return sorted(p.name[: -len(".yml")] for p in folder.iterdir() if p.name.endswith(".yml"))
+
+
+def _add_sweep_arguments(sweep: argparse.ArgumentParser) -> None:
+    """The flags of ``python -m sim sweep``."""
+    _add_simulation_options(sweep, lists=True)
+    sweep.add_argument(
+        "--seeds",
+        type=_seed_list,
+        default=[1],
+        metavar="SEEDS",
+        help="seeds of the initial packings: a count (3 = seeds 1, 2, 3), or a list and ranges (1,4 or "
+        "0-4 or 0,2,5-7; one seed k alone: k-k) (default 1)",
     )
-    run.add_argument("--quiet", action="store_true", help="no progress bar and no compile notice")
+    sweep.add_argument(
+        "--workers",
+        type=_workers,
+        default=2,
+        help="points at once in local worker processes, >= 1 (1: in this process) (default 2)",
+    )
+    sweep.add_argument(
+        "--scheduler",
+        type=_scheduler,
+        default=None,
+        metavar="ADDRESS",
+        help="run the points on the Dask cluster whose scheduler is at ADDRESS (tcp://HOST:8786) instead of "
+        "local processes; needs dask[distributed] and the same sim sources on every worker",
+    )
+    source = sweep.add_mutually_exclusive_group()
+    source.add_argument(
+        "--spec",
+        metavar="FILE",
+        help="YAML file whose keys are this command's flags without '--' (phi: [0.3, 0.45], n-particles: "
+        "64, seeds: 2, ...); flags on the command line override it",
+    )
+    source.add_argument(
+        "--preset",
+        metavar="NAME",
+        help="a packaged spec: small (2 cores, under an hour) or full (the paper's grid, for a cluster); "
+        "flags on the command line override it",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -224,6 +422,31 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_run_arguments(run)
     run.set_defaults(parser=run)
+    sweep = sub.add_parser(
+        "sweep",
+        help="run the cartesian product of comma lists of parameters, one folder per point, resumable",
+        description=(
+            "Run every combination of the comma lists given to "
+            + ", ".join(LISTABLE)
+            + " and --seeds into OUT/<point> (python -m sim run's options; the others hold for every "
+            "point). A rerun skips finished points, resumes interrupted ones from their checkpoint and "
+            "reruns points whose parameters or sim sources changed. OUT/sweep.json lists the points and "
+            "their status. Exit status: 0 all points finished, 1 some point failed (error.json in its "
+            "folder; the others still ran), 2 bad input, 130 interrupted (rerun to resume)."
+        ),
+    )
+    _add_sweep_arguments(sweep)
+    sweep.set_defaults(parser=sweep)
+    figures = sub.add_parser(
+        "figures",
+        help="plot a sweep's results (eta_r, N1, N2, U_rms ratio, g(x, y), D_yy) into DIR/figures",
+        description="Read every point's result.json in a sweep folder, average over seeds and draw the "
+        "sweep's figures and figures/summary.csv.",
+    )
+    figures.add_argument("directory", metavar="DIR", help="a sweep folder (python -m sim sweep --out DIR)")
+    figures.add_argument("--out", default=None, help="folder of the figures (default DIR/figures)")
+    figures.add_argument("--quiet", action="store_true", help="no notes on stdout")
+    figures.set_defaults(parser=figures)
     return parser
 
 
@@ -235,32 +458,126 @@ def _parse(argv: list[str]) -> argparse.Namespace:
     return args
 
 
-def _config(args: argparse.Namespace) -> SimulationConfig:
-    """The run's ``SimulationConfig``; bad values exit 2 with a message naming the flag."""
+def _spec_text(value: Any, flag: str) -> str:
+    """A YAML value as this flag's command-line text (lists as comma lists, ``.inf`` as ``inf``)."""
+    if isinstance(value, list):
+        if flag == "--seeds" and len(value) == 1:  # [3] is seed 3, not a count of 3
+            return f"{_spec_text(value[0], flag)}-{_spec_text(value[0], flag)}"
+        return ",".join(_spec_text(v, flag) for v in value)
+    if isinstance(value, float):
+        return "inf" if value == math.inf else repr(value)
+    return str(value)
+
+
+def _spec_arguments(args: argparse.Namespace) -> list[str]:
+    """The flags and values of ``--spec FILE`` (or ``--preset NAME``), to go before the command line's own."""
     parser: argparse.ArgumentParser = args.parser
-    if not args.strain > 0:  # before the config, whose checks of --transient assume a positive strain
-        parser.error(f"--strain must be > 0 for a run, got {args.strain!r}")
-    if args.transient is not None and math.isfinite(args.strain) and args.transient >= args.strain:
-        parser.error(f"--transient must be below --strain ({args.strain!r}), got {args.transient!r}")
+    if args.preset is not None:
+        names = preset_names()
+        if args.preset not in names:
+            parser.error(f"--preset: no preset {args.preset!r} (available: {', '.join(names)})")
+        flag, where = "--preset", args.preset
+        text = (resources.files("sim") / "presets" / f"{args.preset}.yml").read_text()
+    else:
+        flag, where = "--spec", args.spec
+        try:
+            text = Path(args.spec).read_text()
+        except OSError as exc:
+            parser.error(f"--spec {args.spec}: cannot be read: {exc.strerror or exc}")
+    import yaml
+
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        parser.error(f"{flag} {where}: not valid YAML: {exc}")
+    data = {} if data is None else data
+    if not isinstance(data, dict):
+        parser.error(f"{flag} {where}: must be a mapping of flags (without '--') to values")
+    switches = {a.option_strings[0]: a.nargs == 0 for a in parser._actions if a.option_strings}
+    allowed = [f for f in switches if f.startswith("--") and f not in ("--help", "--spec", "--preset")]
+    tokens: list[str] = []
+    for key, value in data.items():
+        option = "--" + str(key).replace("_", "-")
+        if option not in allowed:
+            valid = ", ".join(f[2:] for f in allowed)
+            parser.error(
+                f"{flag} {where}: unknown key {key!r} (keys are sweep's flags without '--': {valid})"
+            )
+        if switches[option]:
+            if not isinstance(value, bool):
+                parser.error(f"{flag} {where}: {key} must be true or false, got {value!r}")
+            tokens += [option] if value else []
+        elif value is not None:
+            tokens += [option, _spec_text(value, option)]
+    return tokens
+
+
+def _check_run_values(parser: argparse.ArgumentParser, strain: float, transient: float | None) -> None:
+    """Checks of ``--strain`` and ``--transient`` before any configuration is built (they assume a
+    positive strain)."""
+    if not strain > 0:
+        parser.error(f"--strain must be > 0 for a run, got {strain!r}")
+    if transient is not None and math.isfinite(strain) and transient >= strain:
+        parser.error(f"--transient must be below --strain ({strain!r}), got {transient!r}")
+
+
+def _make_config(args: argparse.Namespace, **point: Any) -> SimulationConfig:
+    """A ``SimulationConfig`` from ``args``'s single-valued options and ``point``'s ``volume_fraction``,
+    ``n_particles``, ``mason_number``, ``mechanism``, ``seed``; bad values exit 2 naming the flag."""
     try:
         return SimulationConfig(
-            n_particles=args.n_particles,
-            volume_fraction=args.phi,
-            mason_number=args.mason,
             field_direction=args.field_direction,
-            mechanism=args.mechanism,
             shear_rate=args.shear_rate,
             strain=args.strain,
-            seed=args.seed,
             time_step=args.dt,
             transient_strain=args.transient,
             max_displacement=args.max_displacement,
             near_field=args.near_field,
             near_field_cutoff=args.near_field_cutoff,
             ewald_accuracy=args.ewald_accuracy,
+            **point,
         )
     except ValueError as exc:
+        parser: argparse.ArgumentParser = args.parser
         parser.error(with_flags(str(exc)))
+
+
+def _config(args: argparse.Namespace) -> SimulationConfig:
+    """The run's ``SimulationConfig``; bad values exit 2 with a message naming the flag."""
+    _check_run_values(args.parser, args.strain, args.transient)
+    return _make_config(
+        args,
+        volume_fraction=args.phi,
+        n_particles=args.n_particles,
+        mason_number=args.mason,
+        mechanism=args.mechanism,
+        seed=args.seed,
+    )
+
+
+def _sweep_configs(args: argparse.Namespace) -> list[SimulationConfig]:
+    """Every point of the sweep (``--phi`` x ``--mason`` x ``--n-particles`` x ``--mechanism`` x ``--seeds``),
+    checked as ``run`` checks one (each refused value exits 2 naming its flag) before anything runs."""
+    from sim.run import check_run_length
+    from sim.sweep import check_unique_names
+
+    parser: argparse.ArgumentParser = args.parser
+    _check_run_values(parser, args.strain, args.transient)
+    configs = [
+        _make_config(
+            args, volume_fraction=phi, n_particles=n, mason_number=mason, mechanism=mechanism, seed=seed
+        )
+        for phi, mason, n, mechanism, seed in itertools.product(
+            args.phi, args.mason, args.n_particles, args.mechanism, args.seeds
+        )
+    ]
+    try:
+        for config in configs:
+            check_run_length(config, FLAGS)
+        check_unique_names(configs)
+    except ValueError as exc:
+        parser.error(with_flags(str(exc)))
+    return configs
 
 
 def _stderr_text(value: float) -> str:
@@ -295,10 +612,8 @@ def _summary(config: SimulationConfig, result: dict[str, Any], out: str) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``python -m sim``; returns the exit status (bad input exits 2 via ``SystemExit``)."""
-    args_list = list(sys.argv[1:] if argv is None else argv)
-    args = _parse(args_list)
+def _run(args: argparse.Namespace, args_list: list[str]) -> int:
+    """``python -m sim run``."""
     parser: argparse.ArgumentParser = args.parser
     config = _config(args)
 
@@ -326,3 +641,99 @@ def main(argv: Sequence[str] | None = None) -> int:
     else:
         print(_summary(config, result, args.out))
     return 0
+
+
+def _log(line: str) -> None:
+    """A line on stderr that leaves a tqdm bar intact."""
+    from tqdm import tqdm
+
+    tqdm.write(line, file=sys.stderr)
+
+
+def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
+    """``python -m sim sweep``."""
+    parser: argparse.ArgumentParser = args.parser
+    if args.out is None:
+        parser.error("the following arguments are required: --out")
+    configs = _sweep_configs(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        parser.error(f"--out {out} exists and is not a directory")
+
+    from sim.io import json_ready, read_json
+    from sim.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.sweep import MANIFEST, manifest_text, run_points
+
+    if not args.quiet and args.scheduler is None and not compiled_kernels_cached():
+        print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+    arguments = {k: v for k, v in vars(args).items() if k != "parser"}
+    try:
+        points = run_points(
+            configs,
+            out,
+            workers=args.workers,
+            scheduler=args.scheduler,
+            progress=not args.quiet and sys.stderr.isatty(),
+            command=["python", "-m", "sim", *args_list],
+            arguments=arguments,
+            log=None if args.quiet else _log,
+        )
+    except KeyboardInterrupt:
+        print(f"{parser.prog}: interrupted; rerun the same command to resume", file=sys.stderr)
+        return 130
+    except (OSError, RuntimeError) as exc:
+        if args.scheduler is None:
+            raise
+        parser.error(f"--scheduler {args.scheduler}: {exc}")
+    failed = [p for p in points if p.failure is not None]
+    if args.json:
+        print(json.dumps(json_ready(read_json(out / MANIFEST))))
+    else:
+        print(f"{manifest_text(points)}; {out / MANIFEST}")
+        print(f"figures: python -m sim figures {out}")
+    for point in failed:
+        assert point.failure is not None
+        print(
+            f"{parser.prog}: {point.name} failed: {point.failure.error}: {point.failure.message} "
+            f"(traceback in {out / point.name / 'error.json'})",
+            file=sys.stderr,
+        )
+    return 1 if failed else 0
+
+
+def _figures(args: argparse.Namespace) -> int:
+    """``python -m sim figures``."""
+    from sim.sweep_figures import make_figures
+
+    try:
+        written = make_figures(args.directory, args.out, log=None if args.quiet else print)
+    except (FileNotFoundError, ValueError) as exc:
+        parser: argparse.ArgumentParser = args.parser
+        parser.error(str(exc))
+    if not args.quiet:
+        print(f"{len(written)} files in {Path(written[0]).parent if written else args.out}")
+    return 0
+
+
+def parse_arguments(argv: Sequence[str]) -> argparse.Namespace:
+    """Parse a command line (without ``python -m sim``); for ``sweep``, ``--spec``/``--preset`` merged.
+
+    The spec's flags go before the command line's own, and argparse keeps the last value of a flag, so
+    flags given on the command line override the spec. Bad input exits 2 naming the flag.
+    """
+    args_list = list(argv)
+    args = _parse(args_list)
+    if args.command == "sweep" and (args.spec is not None or args.preset is not None):
+        args = _parse([args_list[0], *_spec_arguments(args), *args_list[1:]])
+    return args
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``python -m sim``; returns the exit status (bad input exits 2 via ``SystemExit``)."""
+    args_list = list(sys.argv[1:] if argv is None else argv)
+    args = parse_arguments(args_list)
+    if args.command == "run":
+        return _run(args, args_list)
+    if args.command == "sweep":
+        return _sweep(args, args_list)
+    return _figures(args)

@@ -7,9 +7,17 @@ A run directory holds:
 ``timeseries.csv`` per step: strain (time when quiescent), step size, Mason number in force, min gap,
                    solver iterations, overlap sweeps, RMS of the DIP and shear velocities, eta_r, N1,
                    N2 and the six independent stress components of every contribution
-``checkpoint.npz`` state + records + parameters; ``--resume`` continues from it bit for bit
-``final_state.npz`` positions and the rest of the state at the end, with the box side and strain
-``result.json``    averaged rheology with standard errors (the CLI's ``--json`` line)
+``checkpoint.npz`` state + records + parameters + observable accumulators; ``--resume`` continues from it
+                   bit for bit
+``final_state.npz`` positions and the rest of the state at the end (with the accumulated non-affine
+                   displacement), with the box side and strain
+``result.json``    averaged rheology with standard errors, diffusivities (the CLI's ``--json`` line)
+``pair_distribution.npz`` ``g(r)`` (``r_edges``, ``g_r``) and its x–y projection in the slab ``|dz| < h``
+                   (``x_edges``, ``y_edges``, ``g_xy[x bin, y bin]``), averaged over ``samples``
+                   configurations after the transient, with the raw counts
+                   (:class:`sim.observables.pair_distribution.PairDistributionAccumulator`)
+``msd.csv``        per lag: ``lag_strain`` (mean lag; time a/U0 when quiescent), ``msd_xx``, ``msd_yy``,
+                   ``msd_zz`` (units a^2; x non-affine) over all origins after the transient
 ``stress.png``     eta_r, N1, N2 against strain
 ================== ==================================================================================
 """
@@ -18,6 +26,7 @@ from __future__ import annotations
 
 import json
 import platform
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -148,19 +157,44 @@ def write_timeseries(path: Path, records: StepRecords) -> None:
     )
 
 
+OBSERVABLE_PREFIX = "observable_"
+"""Prefix of the observable accumulators' arrays in ``checkpoint.npz``."""
+
+
 def save_checkpoint(
-    path: Path, config: SimulationConfig, state: SimulationState, records: StepRecords, wall_seconds: float
+    path: Path,
+    config: SimulationConfig,
+    state: SimulationState,
+    records: StepRecords,
+    wall_seconds: float,
+    observables: Mapping[str, np.ndarray] | None = None,
 ) -> None:
-    """Atomically write state, records and parameters to ``path``."""
+    """Atomically write state, records, parameters and (optionally) observable accumulators to ``path``.
+
+    ``observables`` are stored under their names prefixed by :data:`OBSERVABLE_PREFIX`; read them back
+    with :func:`load_checkpoint_observables`.
+    """
     tmp = path.with_name(path.name + ".tmp.npz")
+    extra: dict[str, Any] = {f"{OBSERVABLE_PREFIX}{name}": v for name, v in (observables or {}).items()}
     np.savez(
         tmp,
         config=np.array(json.dumps(config.to_dict())),
         wall_seconds=np.array(wall_seconds),
         **state.arrays(),
         **records.arrays(),
+        **extra,
     )
     tmp.replace(path)
+
+
+def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
+    """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without."""
+    with np.load(path) as data:
+        return {
+            name[len(OBSERVABLE_PREFIX) :]: np.array(data[name])
+            for name in data.files
+            if name.startswith(OBSERVABLE_PREFIX)
+        }
 
 
 def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, StepRecords, float]:
@@ -178,3 +212,32 @@ def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, Step
 def save_final_state(path: Path, config: SimulationConfig, state: SimulationState) -> None:
     """``final_state.npz``: the state plus the box side."""
     np.savez(path, box_length=np.array(config.box_length), **state.arrays())
+
+
+def write_pair_distribution(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
+    """``pair_distribution.npz``: the arrays of
+    :meth:`sim.observables.pair_distribution.PairDistributionAccumulator.result_arrays`."""
+    data: dict[str, Any] = dict(arrays)
+    np.savez(path, **data)
+
+
+def write_msd(path: Path, lag_times: np.ndarray, msd: np.ndarray) -> None:
+    """``msd.csv``: columns ``lag_strain, msd_xx, msd_yy, msd_zz``, one row per lag with data.
+
+    Args:
+        path: file to write.
+        lag_times: (M,) mean lag per row (strain; time a/U0 when quiescent); NaN rows (lags without an
+            origin) are left out.
+        msd: (M, 3) mean-square non-affine displacement per component (units a^2).
+    """
+    lag_times = np.asarray(lag_times, dtype=np.float64)
+    msd = np.asarray(msd, dtype=np.float64)
+    keep = np.isfinite(lag_times)
+    np.savetxt(
+        path,
+        np.column_stack([lag_times[keep], msd[keep]]).reshape(-1, 4),
+        delimiter=",",
+        header="lag_strain,msd_xx,msd_yy,msd_zz",
+        comments="",
+        fmt="%.10g",
+    )

@@ -1,4 +1,8 @@
-"""One run = a pure function of its ``SimulationConfig`` (seed included) that writes one directory."""
+"""One run = a pure function of its ``SimulationConfig`` (seed included) that writes one directory.
+
+Besides the step records (rheology), a run samples g(r), its x–y projection and the displacement for the
+MSD at fixed clock times (:mod:`sim.run_observables`); their accumulators travel in the checkpoint, so a
+resumed run continues them bit for bit."""
 
 from __future__ import annotations
 
@@ -10,9 +14,12 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from sim import io
 from sim.config import SimulationConfig
 from sim.figures import plot_rheology
+from sim.run_observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
 from sim.simulation import Simulation, StepRecords
 from sim.state import SimulationState
 from sim.stepper import stop_time
@@ -143,6 +150,7 @@ def run_simulation(
     resume: bool = False,
     command: list[str] | None = None,
     parameter_names: Mapping[str, str] | None = None,
+    sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
 ) -> dict[str, Any]:
     """Run (or resume) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
@@ -160,12 +168,20 @@ def run_simulation(
         command: the command line, recorded in ``params.json``.
         parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
             the command line passes its flags. Field names by default.
+        sample_interval: clock interval between observable samples (g(r), x–y projection, displacement
+            for the MSD), > 0; a resumed run must use its checkpoint's.
 
     Returns:
         The contents of ``result.json``: ``relative_viscosity``, ``relative_viscosity_stderr``, ``n1``,
         ``n1_stderr``, ``n2``, ``n2_stderr``, ``strain``, ``steps``, ``n_particles``, ``volume_fraction``,
         ``min_gap``, ``wall_seconds`` and per-contribution means. A standard error that needs more samples
-        than the run has after its transient (fewer than ``n_blocks``) is NaN.
+        than the run has after its transient (fewer than ``n_blocks``) is NaN. The observables add
+        ``diffusivity_xx``, ``diffusivity_yy``, ``diffusivity_zz`` (units gammadot a^2; U0 a when quiescent;
+        NaN, with the reason in ``diffusivity_note``, when the run is too short for the fit window),
+        ``diffusivity_fit_window`` ``[start, end]`` (lags of the fit), ``diffusivity_note``,
+        ``msd_samples``, ``pair_distribution_samples``, ``observables_sample_interval``,
+        ``observables_from_strain`` and ``observables_note`` (see :meth:`RunObservables.results`); the
+        arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`).
 
     Raises:
         ValueError: bad input (the message names the parameter); FileNotFoundError: ``resume`` without a
@@ -175,13 +191,23 @@ def run_simulation(
     names = parameter_names
     out = Path(out_dir)
     check_run_length(config, names)
+    if not (
+        isinstance(sample_interval, int | float)
+        and not isinstance(sample_interval, bool)
+        and math.isfinite(sample_interval)
+        and sample_interval > 0.0
+    ):
+        raise ValueError(f"{_name('sample_interval', names)} must be finite and > 0, got {sample_interval!r}")
     _check_output_directory(out, names)
     checkpoint = out / "checkpoint.npz"
     state: SimulationState | None = None
     records: StepRecords | None = None
     wall_before = 0.0
+    saved_observables: dict[str, np.ndarray] = {}
     if resume:
         state, records, wall_before = _load_resumable(checkpoint, config, names)
+        saved_observables = io.load_checkpoint_observables(checkpoint)
+    observables = RunObservables.for_run(config, float(sample_interval), records, saved_observables, names)
     if progress is not False and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
     sim = Simulation(config, state)
@@ -192,17 +218,25 @@ def run_simulation(
     except OSError as exc:
         raise ValueError(f"{_name('out_dir', names)} {out} cannot be created: {exc.strerror}") from exc
     io.write_params(out, config, command)
-    wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress)
-    return _write_results(sim, out, checkpoint, wall)
+    wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress, observables)
+    return _write_results(sim, out, checkpoint, wall, observables)
 
 
 def _advance_with_checkpoints(
-    sim: Simulation, checkpoint: Path, wall_before: float, progress: bool | None
+    sim: Simulation,
+    checkpoint: Path,
+    wall_before: float,
+    progress: bool | None,
+    observables: RunObservables,
 ) -> float:
-    """Step ``sim`` to its configured strain, checkpointing every ``checkpoint_every``; return wall time.
+    """Step ``sim`` to its configured strain, sampling ``observables`` at their clock times and
+    checkpointing every ``checkpoint_every``; return wall time.
 
-    The progress bar appears after the first chunk of steps, so that its clock (and its estimate of the
-    time left) does not include compiling the kernels.
+    The step loop is stopped at every sample time (:meth:`Simulation.advance_to`; stopping never changes
+    the trajectory), and a sample due at the end of a chunk is taken before that chunk's checkpoint, so a
+    checkpoint always holds the accumulators of its state. The progress bar appears after the first
+    chunk of steps, so that its clock (and its estimate of the time left) does not include compiling the
+    kernels.
     """
     config = sim.config
     start = time.perf_counter()
@@ -219,26 +253,40 @@ def _advance_with_checkpoints(
         elif bar is not None:
             bar.n = round(min(s.state.strain, config.strain), 6)
             bar.refresh()
+        observables.sample_if_due(s)
         if s.state.strain >= next_checkpoint - 1e-9:
             io.save_checkpoint(
-                checkpoint, config, s.state, s.records, wall_before + time.perf_counter() - start
+                checkpoint,
+                config,
+                s.state,
+                s.records,
+                wall_before + time.perf_counter() - start,
+                observables.arrays(),
             )
             next_checkpoint += config.checkpoint_every
 
+    end = stop_time(config.strain, config.time_step)
     try:
-        sim.advance_to(config.strain, chunk_steps=100, on_chunk=on_chunk)
+        observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
+        while sim.state.strain < end:
+            target = min(observables.next_sample_time, config.strain)
+            sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
     finally:
         if bar is not None:
             bar.close()
     return wall_before + time.perf_counter() - start
 
 
-def _write_results(sim: Simulation, out: Path, checkpoint: Path, wall: float) -> dict[str, Any]:
-    """Write the checkpoint, final state, time series, ``result.json`` and plot; return the result."""
+def _write_results(
+    sim: Simulation, out: Path, checkpoint: Path, wall: float, observables: RunObservables
+) -> dict[str, Any]:
+    """Write the checkpoint, final state, time series, observables, ``result.json`` and plot; return the
+    result."""
     config = sim.config
-    io.save_checkpoint(checkpoint, config, sim.state, sim.records, wall)
+    io.save_checkpoint(checkpoint, config, sim.state, sim.records, wall, observables.arrays())
     io.save_final_state(out / "final_state.npz", config, sim.state)
     io.write_timeseries(out / "timeseries.csv", sim.records)
+    observables.write(out)
     rheo = sim.rheology()
     records = sim.records
     result: dict[str, Any] = {
@@ -273,6 +321,7 @@ def _write_results(sim: Simulation, out: Path, checkpoint: Path, wall: float) ->
             name: {"relative_viscosity": v[0], "n1": v[1], "n2": v[2]}
             for name, v in rheo.contributions.items()
         },
+        **observables.results(config),
     }
     io.write_json(out / "result.json", result)
     plot_rheology(

@@ -251,6 +251,7 @@ class Simulation:
             s.has_previous,
             s.strain,
             s.step_history,
+            s.displacement,
             max_steps,
             end_time,
             self._params,

@@ -28,6 +28,12 @@ class SimulationState:
             AB2 and the extrapolated PCG guess.
         mason_number: the field in force now, ``Mn = eta gammadot/(eps E0^2)`` (``inf``: off).
         field_direction: (3,) float64 unit vector of the field in force now.
+        displacement: (N, 3) float64 non-affine displacement of each sphere in the unwrapped frame since the
+            start of the run (units a): ``X(t) - X(0) - gammadot x_hat int_0^t Y dt'``, accumulated per step
+            by :func:`sim.observables.diffusion.accumulate_displacement` (overlap removal included). It
+            does not change the dynamics; the mean-square displacement uses its differences between
+            samples only, so its origin is arbitrary. Defaults to zeros (an empty array given here is
+            replaced by zeros of the positions' shape).
     """
 
     positions: np.ndarray
@@ -41,6 +47,16 @@ class SimulationState:
     step_history: np.ndarray = field(default_factory=lambda: np.zeros(2))
     mason_number: float = math.inf
     field_direction: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
+    displacement: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+
+    def __post_init__(self) -> None:
+        if self.displacement.size == 0 and self.positions.shape[0] > 0:
+            self.displacement = np.zeros((self.positions.shape[0], 3))
+        if self.displacement.shape != self.positions.shape:
+            raise ValueError(
+                f"displacement must have the shape of positions {self.positions.shape}, "
+                f"got {self.displacement.shape}"
+            )
 
     @classmethod
     def initial(
@@ -79,6 +95,7 @@ class SimulationState:
             self.step_history.copy(),
             self.mason_number,
             self.field_direction.copy(),
+            self.displacement.copy(),
         )
 
     def arrays(self) -> dict[str, Any]:
@@ -95,11 +112,19 @@ class SimulationState:
             "step_history": self.step_history,
             "mason_number": np.array(self.mason_number, dtype=np.float64),
             "field_direction": self.field_direction,
+            "displacement": self.displacement,
         }
 
     @classmethod
     def from_arrays(cls, data: dict[str, np.ndarray] | np.lib.npyio.NpzFile) -> SimulationState:
-        """Inverse of :meth:`arrays`."""
+        """Inverse of :meth:`arrays`.
+
+        Checkpoints written before ``displacement`` was part of the state load with zeros (its origin is
+        arbitrary: only differences between later samples enter the mean-square displacement).
+        """
+        displacement = (
+            np.array(data["displacement"], dtype=np.float64) if "displacement" in data else np.zeros((0, 3))
+        )
         return cls(
             positions=np.array(data["positions"], dtype=np.float64),
             previous_velocity=np.array(data["previous_velocity"], dtype=np.float64),
@@ -112,6 +137,7 @@ class SimulationState:
             step_history=np.array(data["step_history"], dtype=np.float64),
             mason_number=float(data["mason_number"]),
             field_direction=np.array(data["field_direction"], dtype=np.float64),
+            displacement=displacement,
         )
 
     def save(self, path: str | Path) -> None:

@@ -20,7 +20,9 @@ Stepping (:func:`advance`): second-order Adams–Bashforth with a variable step 
 the largest step that keeps the non-affine displacement ``dt_n max_p |U_p - u_inf(x_p)|`` below
 ``params.max_displacement`` (paper §2.3: < 0.4% of the mean spacing), capped by ``max_time_step`` and by
 ``max_step_growth * dt_{n-1}``, and floored at ``min_time_step``. The Lees–Edwards wrap follows, then
-Melrose–Ball overlap removal. Everything is ``@njit``; :func:`advance` loops over many steps without
+Melrose–Ball overlap removal; last, the step's non-affine displacement in the unwrapped frame is added to
+the state's ``displacement`` (:func:`sim.observables.diffusion.accumulate_displacement`, O(N); it does not
+feed back on the dynamics). Everything is ``@njit``; :func:`advance` loops over many steps without
 returning to Python.
 
 Time: the clock ``t`` is strain in sheared runs (``gammadot = 1``) and ``t U0 / a`` in quiescent runs;
@@ -46,6 +48,7 @@ from sim.hydrodynamics.lubrication import pair_stresslets, strain_forcing
 from sim.hydrodynamics.resistance_solver import solve_resistance
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
 from sim.integrators import shift_crossed_velocities, variable_step_adams_bashforth
+from sim.observables.diffusion import accumulate_displacement
 from sim.observables.stress import (
     DEP_STRESSLET,
     DEP_VIRIAL,
@@ -264,6 +267,7 @@ def advance(
     has_previous: bool,
     time: float,
     step_history: np.ndarray,
+    displacement: np.ndarray,
     max_steps: int,
     end_time: float,
     params,
@@ -275,9 +279,11 @@ def advance(
     two disturbance solutions, of which ``stored_solutions`` are valid) and ``step_history`` (2,: the
     last two step sizes) are updated in place; with ``time`` and ``has_previous`` they form the complete
     dynamical state: the same state gives the same trajectory bit for bit, however the steps are split
-    between calls. The loop stops at the first step that brings the clock to ``end_time`` or beyond
-    (no step is shortened to land on it, so stopping and continuing never changes the trajectory). The
-    PCG initial guess extrapolates the last two solutions linearly in time.
+    between calls. ``displacement`` (N, 3) accumulates each step's non-affine displacement in the
+    unwrapped frame, overlap removal included (:func:`sim.observables.diffusion.accumulate_displacement`);
+    it is an observable, never read by the dynamics. The loop stops at the first step that brings the
+    clock to ``end_time`` or beyond (no step is shortened to land on it, so stopping and continuing never
+    changes the trajectory). The PCG initial guess extrapolates the last two solutions linearly in time.
 
     Returns:
         time, has_previous, stored_solutions, steps completed, status (``STATUS_*``), and per step
@@ -295,6 +301,7 @@ def advance(
     rms_shear_series = np.zeros(max_steps)
     n = positions.shape[0]
     guess = np.empty_like(warm_start)
+    step_start = np.empty_like(positions)
     status = STATUS_OK
     done = 0
     stop = stop_time(end_time, params.max_time_step)
@@ -338,6 +345,7 @@ def advance(
         warm_start[:, :] = disturbance
         stored_solutions = min(stored_solutions + 1, 2)
 
+        step_start[:, :] = positions
         variable_step_adams_bashforth(
             positions, velocity, previous_velocity, has_previous, dt, step_history[0]
         )
@@ -351,6 +359,9 @@ def advance(
             positions, params.box_length, offset, params.overlap_min_gap, params.overlap_max_sweeps
         )
         shift_crossed_velocities(velocity, crossings, params.box_length, params.shear_rate)
+        accumulate_displacement(
+            displacement, step_start, positions, dt, params.shear_rate, params.box_length, offset
+        )
         previous_velocity[:, :] = velocity
         has_previous = True
         sweep_series[done] = sweeps

@@ -55,18 +55,55 @@ def test_refused_runs_write_nothing(tmp_path: Path) -> None:
     assert not (tmp_path / "none").exists()
 
 
-def test_extending_a_run_on_resume_equals_the_longer_run(tmp_path: Path) -> None:
-    """Resume a finished 0.02-strain run with strain 0.04: files and numbers identical to a 0.04 run."""
-    run_simulation(SHORT, tmp_path / "extended", progress=False)
-    extended = run_simulation(LONG, tmp_path / "extended", progress=False, resume=True)
-    direct = run_simulation(LONG, tmp_path / "direct", progress=False)
+OBSERVABLE_KEYS = (
+    "diffusivity_xx",
+    "diffusivity_yy",
+    "diffusivity_zz",
+    "diffusivity_fit_window",
+    "diffusivity_note",
+    "msd_samples",
+    "pair_distribution_samples",
+    "observables_from_strain",
+    "observables_note",
+)
+
+
+def _assert_same_observables(a: Path, b: Path) -> None:
+    """pair_distribution.npz arrays and msd.csv identical (bit for bit; NaN where both are NaN)."""
+    with np.load(a / "pair_distribution.npz") as x, np.load(b / "pair_distribution.npz") as y:
+        assert set(x.files) == set(y.files)
+        for name in x.files:
+            np.testing.assert_array_equal(x[name], y[name], err_msg=name)
+    assert (a / "msd.csv").read_text() == (b / "msd.csv").read_text()
+
+
+@pytest.mark.parametrize("transient", [None, 0.01])
+def test_extending_a_run_on_resume_equals_the_longer_run(tmp_path: Path, transient: float | None) -> None:
+    """Resume a finished 0.02-strain run with strain 0.04: files and numbers identical to a 0.04 run,
+    observables included (sampled every 0.004). With the default transient (half the run: 0.01, then 0.02)
+    the accumulators restart at the new transient, which the checkpoint has just reached; with a fixed one
+    they continue from the checkpoint."""
+    short = dataclasses.replace(SHORT, transient_strain=transient)
+    long = dataclasses.replace(LONG, transient_strain=transient)
+    run_simulation(short, tmp_path / "extended", progress=False, sample_interval=0.004)
+    extended = run_simulation(long, tmp_path / "extended", progress=False, resume=True, sample_interval=0.004)
+    direct = run_simulation(long, tmp_path / "direct", progress=False, sample_interval=0.004)
     for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "min_gap", "averaged_samples"):
         assert extended[key] == direct[key], key
+    for key in OBSERVABLE_KEYS:
+        assert extended[key] == direct[key] or (extended[key] != extended[key] and direct[key] != direct[key])
+    assert direct["observables_note"] == ""
+    assert direct["msd_samples"] == (6 if transient is None else 8)  # every 0.004 from 0.02 or 0.012
+    assert direct["pair_distribution_samples"] == 2  # every fourth
+    _assert_same_observables(tmp_path / "extended", tmp_path / "direct")
     for name in ("timeseries.csv", "params.json"):
         assert (tmp_path / "extended" / name).read_text() == (tmp_path / "direct" / name).read_text(), name
     a = SimulationState.load(tmp_path / "extended" / "final_state.npz")
     b = SimulationState.load(tmp_path / "direct" / "final_state.npz")
     np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.displacement, b.displacement)
+    if transient is not None:
+        return
     with pytest.raises(ValueError, match="has already run past strain=0.02"):
         run_simulation(SHORT, tmp_path / "extended", progress=False, resume=True)
     other = dataclasses.replace(LONG, seed=4, time_step=0.001)
@@ -92,6 +129,34 @@ class _Bar:
 
     def close(self) -> None:
         self.closed = True
+
+
+def test_observables_contract_and_short_runs(tmp_path: Path) -> None:
+    """result.json, pair_distribution.npz and msd.csv as other tools read them; a run too short for the
+    diffusivity window gives NaN and says why; a resume with another sample_interval, or past a moved
+    transient, is refused or noted."""
+    result = run_simulation(SHORT, tmp_path / "o", progress=False, sample_interval=0.004)
+    assert np.isnan(result["diffusivity_yy"]) and np.isnan(result["diffusivity_zz"])
+    assert "too short for the fit window" in result["diffusivity_note"]
+    assert result["diffusivity_fit_window"][0] == 1.0
+    assert result["observables_from_strain"] == pytest.approx(0.012)  # first t_k >= transient 0.01
+    saved = sim.io.read_json(tmp_path / "o" / "result.json")
+    assert np.isnan(saved["diffusivity_yy"]) and saved["msd_samples"] == 3
+    assert saved["pair_distribution_samples"] == 1
+    with np.load(tmp_path / "o" / "pair_distribution.npz") as data:
+        assert data["g_xy"].shape == (data["x_edges"].size - 1, data["y_edges"].size - 1)
+        assert data["g_r"].shape == (data["r_edges"].size - 1,) and int(data["samples"]) == 1
+    lines = (tmp_path / "o" / "msd.csv").read_text().splitlines()
+    assert lines[0] == "lag_strain,msd_xx,msd_yy,msd_zz" and len(lines) == 3  # lags 0.004, 0.008
+    np.testing.assert_allclose(np.loadtxt(lines[1:], delimiter=",")[:, 0], [0.004, 0.008], rtol=1e-6)
+    with pytest.raises(ValueError, match="sample_interval=0.01 was requested"):
+        run_simulation(LONG, tmp_path / "o", progress=False, resume=True, sample_interval=0.01)
+    with pytest.raises(ValueError, match="sample_interval must be finite and > 0"):
+        run_simulation(LONG, tmp_path / "o", progress=False, sample_interval=0.0)
+    longer = dataclasses.replace(SHORT, strain=0.03)  # transient 0.015: already passed at 0.02
+    moved = run_simulation(longer, tmp_path / "o", progress=False, resume=True, sample_interval=0.004)
+    assert "transient 0.015 had been passed" in moved["observables_note"]
+    assert moved["observables_from_strain"] == pytest.approx(0.012)
 
 
 def test_compile_notice_and_progress_bar_after_the_first_chunk(tmp_path: Path, monkeypatch, capsys) -> None:

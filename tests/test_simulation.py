@@ -37,21 +37,35 @@ def test_same_seed_same_numbers_and_restore_is_bit_identical() -> None:
 
 
 def test_checkpoint_resume_matches_uninterrupted_run(tmp_path) -> None:
-    """Interrupt after a checkpoint, resume from files: final state and time series identical."""
-    full = run_simulation(CONFIG, tmp_path / "full", progress=False)
+    """Interrupt after a checkpoint, resume from files: final state, time series and observables identical.
+
+    The checkpoint is written by hand before the transient (0.06) and holds no observable accumulators:
+    they start at the transient as in the full run (displacement every 0.01, g every 0.04). Resuming from
+    a checkpoint that holds them: tests/test_run.py.
+    """
+    full = run_simulation(CONFIG, tmp_path / "full", progress=False, sample_interval=0.01)
+    assert full["msd_samples"] == 7 and full["pair_distribution_samples"] == 2  # strain 0.06 and 0.1
+    with np.load(tmp_path / "full" / "checkpoint.npz") as data:
+        assert "observable_msd_buffer" in data.files and "displacement" in data.files
     interrupted = Simulation(CONFIG)
     interrupted.advance_to(0.05)
     (tmp_path / "cut").mkdir()
     save_checkpoint(tmp_path / "cut" / "checkpoint.npz", CONFIG, interrupted.state, interrupted.records, 1.0)
-    resumed = run_simulation(CONFIG, tmp_path / "cut", progress=False, resume=True)
+    resumed = run_simulation(CONFIG, tmp_path / "cut", progress=False, resume=True, sample_interval=0.01)
     a = SimulationState.load(tmp_path / "full" / "final_state.npz")
     b = SimulationState.load(tmp_path / "cut" / "final_state.npz")
     np.testing.assert_array_equal(a.positions, b.positions)
     np.testing.assert_array_equal(a.previous_velocity, b.previous_velocity)
-    assert (tmp_path / "full" / "timeseries.csv").read_text() == (
-        tmp_path / "cut" / "timeseries.csv"
-    ).read_text()
-    for key in ("relative_viscosity", "n1", "n2", "steps", "strain"):
+    np.testing.assert_array_equal(a.displacement, b.displacement)
+    for name in ("timeseries.csv", "msd.csv"):
+        assert (tmp_path / "full" / name).read_text() == (tmp_path / "cut" / name).read_text(), name
+    with (
+        np.load(tmp_path / "full" / "pair_distribution.npz") as x,
+        np.load(tmp_path / "cut" / "pair_distribution.npz") as y,
+    ):
+        for name in x.files:
+            np.testing.assert_array_equal(x[name], y[name], err_msg=name)
+    for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "msd_samples", "observables_note"):
         assert full[key] == resumed[key]
     _, _, records, _ = load_checkpoint(tmp_path / "cut" / "checkpoint.npz")
     assert records.strain.size == full["steps"]
