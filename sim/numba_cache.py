@@ -34,3 +34,14 @@ def configure_numba_cache() -> str | None:
     directory = base / f"numba-{source_digest(Path(__file__).resolve().parent)}"
     numba.config.CACHE_DIR = str(directory)  # type: ignore[attr-defined]
     return str(directory)
+
+
+REPRODUCIBLE_FASTMATH = {"nnan", "ninf", "nsz"}
+"""The only LLVM fast-math flags ``sim``'s kernels may use: they let the compiler assume finite values
+(dropping NaN/inf and signed-zero checks) and never change a finite result. The flags that do
+(``reassoc``, ``contract``, ``arcp``, ``afn``, i.e. ``fastmath=True``) make freshly compiled and
+cache-loaded machine code differ: measured, a run whose Ewald kernels were compiled in the same process
+and the same run loading them from numba's cache parted in the fifth digit of the first step's stress
+(N = 100, phi = 0.35, Mn = 1), breaking "same seed, same numbers" between a first run and its rerun.
+With these flags both agree bit for bit (``tests/test_numba_cache.py``). The cost: the Ewald real-space
+and k-space sums no longer vectorise their reductions (DIP far field about 2x slower at N = 500)."""

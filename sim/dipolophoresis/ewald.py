@@ -92,6 +92,7 @@ from scipy import optimize, special
 
 from sim.dipolophoresis import spme
 from sim.dipolophoresis.far_field import DEP_T_COEFFICIENT, ICEP_S_COEFFICIENT, ICEP_T_COEFFICIENT
+from sim.numba_cache import REPRODUCIBLE_FASTMATH
 
 __all__ = [
     "METHOD_EWALD",
@@ -203,7 +204,7 @@ _ERFCX_DEGREE = 21
 _ERFCX_COEFFICIENTS = _erfcx_chebyshev(_ERFCX_DEGREE)
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _real_space_block(
     count: int,
     bx: np.ndarray,
@@ -222,7 +223,8 @@ def _real_space_block(
     """Real-space terms of ``count`` pairs (separations ``x = x_alpha - x_beta`` within the cut-off).
 
     Branch-free so that LLVM vectorises it (``error_model="numpy"`` drops numba's division and
-    ``sqrt`` checks, ``fastmath`` allows the vector reductions); ``erfc(xi r) = exp(-xi^2 r^2)
+    ``sqrt`` checks; the fast-math flags are only the reproducible ones of
+    :data:`sim.numba_cache.REPRODUCIBLE_FASTMATH`); ``erfc(xi r) = exp(-xi^2 r^2)
     erfcx(xi r)`` with ``erfcx`` from its Chebyshev series (:func:`_erfcx_chebyshev`) and
     ``bgauss = exp(-xi^2 r^2)`` computed by the caller. Per pair (module docstring for units):
     the velocity of alpha ``A Q.x + B (x.Q.x) x`` into ``ux, uy, uz`` (beta gets its negative);
@@ -617,7 +619,7 @@ def _phase_table(s: np.ndarray, m_low: int, m_high: int) -> tuple[np.ndarray, np
     return cos_t, sin_t
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _ewald_fourier_sums(
     positions: np.ndarray,
     box_length: float,
@@ -710,7 +712,7 @@ def _ewald_fourier_sums(
         velocity[p, 2] += uz[p] / volume
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _mesh_row(
     kx: float,
     ky: float,

@@ -64,6 +64,8 @@ import numpy as np
 import scipy.fft
 from numba import njit, objmode
 
+from sim.numba_cache import REPRODUCIBLE_FASTMATH
+
 __all__ = [
     "AUTO_SPME_MIN_PARTICLES",
     "bspline_moduli",
@@ -156,7 +158,7 @@ def spread_unit_charges(base: np.ndarray, weights: np.ndarray, mesh: tuple[int, 
     return grid
 
 
-@njit(cache=True, fastmath=True, error_model="numpy")
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def interpolate_add(
     base: np.ndarray,
     weights: np.ndarray,
