@@ -206,17 +206,6 @@ def _masons(text: str) -> list[float]:
     return values
 
 
-def _positive_int(text: str) -> int:
-    """``--steps``: an integer >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 1, got {text!r}")
-    return value
-
-
 def _non_negative(text: str) -> float:
     """``--warmup-strain``: a finite number >= 0."""
     try:
@@ -230,6 +219,8 @@ def _non_negative(text: str) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     """Options of the benchmark (defaults shown by ``--help``)."""
+    from sim.cli import positive_int  # here: sim loads numba, which must see NUMBA_NUM_THREADS set above
+
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
@@ -243,7 +234,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--steps",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help=f"timed steps per size, after the warm-up (default {DEFAULTS.steps}; --quick: {QUICK.steps})",
     )

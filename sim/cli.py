@@ -181,8 +181,8 @@ def _seed_list(text: str) -> list[int]:
         ) from None
 
 
-def _workers(text: str) -> int:
-    """``--workers``: an integer >= 1."""
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1 (``--workers``; also the benchmark's ``--steps``)."""
     try:
         value = int(text)
     except ValueError:
@@ -384,7 +384,7 @@ def _add_sweep_arguments(sweep: argparse.ArgumentParser) -> None:
     )
     sweep.add_argument(
         "--workers",
-        type=_workers,
+        type=positive_int,
         default=2,
         help="points at once in local worker processes, >= 1 (1: in this process) (default 2)",
     )

@@ -8,6 +8,7 @@ import numpy as np
 
 from sim.observables.stress import rheology
 from sim.simulation import StepRecords
+from sim.sweep_figures import plot_maron_pierce
 
 
 def plot_rheology(records: StepRecords, path: Path, transient: float, title: str = "") -> None:
@@ -59,13 +60,12 @@ def plot_viscosity_curve(
 
     phi = np.asarray(volume_fractions)
     fig, (ax_eta, ax_n) = plt.subplots(1, 2, figsize=(10, 4))
-    curve = np.linspace(0.0, max(phi.max(), 0.5) + 0.02, 200)
-    ax_eta.plot(
-        curve,
-        (1.0 - curve / maron_pierce_phi_max) ** -2,
+    plot_maron_pierce(
+        ax_eta,
+        max(phi.max(), 0.5) + 0.02,
+        maron_pierce_phi_max,
         "k--",
-        lw=1,
-        label=f"Maron–Pierce, $\\phi_m$ = {maron_pierce_phi_max}",
+        f"Maron–Pierce, $\\phi_m$ = {maron_pierce_phi_max}",
     )
     ax_eta.errorbar(
         phi,

@@ -362,30 +362,55 @@ def _title(fig: Any, series: Series) -> None:
         fig.suptitle(series.label.replace("_", ", "))
 
 
-def plot_viscosity_vs_phi(series: Series, path: Path, written: list[Path]) -> None:
-    """``eta_r(phi)`` per ``Mn`` with Maron–Pierce."""
-    fig, axes = _figure(6.0, 4.4)
-    ax = axes[0, 0]
+def _plot_against_phi(ax: Any, series: Series, key: str) -> None:
+    """Group statistic ``key`` (mean, standard error) against ``phi``, one curve per ``Mn`` of ``series``."""
     masons = series.masons
     for mason, colour in zip(masons, _colours(len(masons)), strict=True):
         groups = [series.groups[(p, mason)] for p in series.phis if (p, mason) in series.groups]
         ax.errorbar(
             [g.volume_fraction for g in groups],
-            [g.stats["eta_r"][0] for g in groups],
-            yerr=[_bar(g.stats["eta_r"][1]) for g in groups],
+            [g.stats[key][0] for g in groups],
+            yerr=[_bar(g.stats[key][1]) for g in groups],
             fmt="o-" if math.isfinite(mason) else "s--",
             color=colour,
             capsize=3,
             label=_mason_label(mason),
         )
+
+
+def _plot_against_mason(ax: Any, series: Series, key: str) -> None:
+    """Group statistic ``key`` against ``Mn`` (axis of :func:`_mason_axis`), one curve per ``phi``."""
+    _mason_axis(ax, series.masons)
+    for phi, colour in zip(series.phis, _colours(len(series.phis)), strict=True):
+        groups = [series.groups[(phi, m)] for m in series.masons if (phi, m) in series.groups]
+        _errorbar_mason(
+            ax,
+            [g.mason_number for g in groups],
+            [g.stats[key][0] for g in groups],
+            [g.stats[key][1] for g in groups],
+            color=colour,
+            label=rf"$\phi$ = {phi:g}",
+        )
+
+
+def plot_maron_pierce(ax: Any, phi_end: float, phi_max: float, fmt: str, label: str) -> None:
+    """The Maron–Pierce curve ``(1 - phi/phi_max)^-2`` on ``0 <= phi <= phi_end`` (200 points, thin line)."""
+    curve = np.linspace(0.0, phi_end, 200)
+    ax.plot(curve, (1.0 - curve / phi_max) ** -2, fmt, lw=1, label=label)
+
+
+def plot_viscosity_vs_phi(series: Series, path: Path, written: list[Path]) -> None:
+    """``eta_r(phi)`` per ``Mn`` with Maron–Pierce."""
+    fig, axes = _figure(6.0, 4.4)
+    ax = axes[0, 0]
+    _plot_against_phi(ax, series, "eta_r")
     phi_max = max(series.phis)
-    curve = np.linspace(0.0, min(phi_max + 0.02, 0.6), 200)
-    ax.plot(
-        curve,
-        (1.0 - curve / MARON_PIERCE_PHI_MAX) ** -2,
+    plot_maron_pierce(
+        ax,
+        min(phi_max + 0.02, 0.6),
+        MARON_PIERCE_PHI_MAX,
         "k:",
-        lw=1,
-        label=rf"Maron–Pierce $(1-\phi/{MARON_PIERCE_PHI_MAX})^{{-2}}$",
+        rf"Maron–Pierce $(1-\phi/{MARON_PIERCE_PHI_MAX})^{{-2}}$",
     )
     ax.set_xlabel(r"volume fraction $\phi$")
     ax.set_ylabel(r"relative viscosity $\eta_r = \Sigma_{xy}/(\eta\dot\gamma)$")
@@ -398,17 +423,7 @@ def plot_viscosity_vs_mason(series: Series, path: Path, written: list[Path]) -> 
     """``eta_r(Mn)`` per ``phi``; ``Mn = inf`` at the right edge."""
     fig, axes = _figure(6.0, 4.4)
     ax = axes[0, 0]
-    _mason_axis(ax, series.masons)
-    for phi, colour in zip(series.phis, _colours(len(series.phis)), strict=True):
-        groups = [series.groups[(phi, m)] for m in series.masons if (phi, m) in series.groups]
-        _errorbar_mason(
-            ax,
-            [g.mason_number for g in groups],
-            [g.stats["eta_r"][0] for g in groups],
-            [g.stats["eta_r"][1] for g in groups],
-            color=colour,
-            label=rf"$\phi$ = {phi:g}",
-        )
+    _plot_against_mason(ax, series, "eta_r")
     ax.set_ylabel(r"relative viscosity $\eta_r = \Sigma_{xy}/(\eta\dot\gamma)$")
     ax.legend(fontsize="small")
     _title(fig, series)
@@ -564,32 +579,12 @@ def plot_diffusivity(series: Series, path: Path, written: list[Path], log: Calla
     fig, axes = _figure(10.0, 4.2, columns=2)
     label = r"diffusivity $D_{yy}/(\dot\gamma a^2)$"
     ax = axes[0, 0]
-    for mason, colour in zip(series.masons, _colours(len(series.masons)), strict=True):
-        groups = [series.groups[(p, mason)] for p in series.phis if (p, mason) in series.groups]
-        ax.errorbar(
-            [g.volume_fraction for g in groups],
-            [g.stats["diffusivity_yy"][0] for g in groups],
-            yerr=[_bar(g.stats["diffusivity_yy"][1]) for g in groups],
-            fmt="o-" if math.isfinite(mason) else "s--",
-            color=colour,
-            capsize=3,
-            label=_mason_label(mason),
-        )
+    _plot_against_phi(ax, series, "diffusivity_yy")
     ax.set_xlabel(r"volume fraction $\phi$")
     ax.set_ylabel(label)
     ax.legend(fontsize="small")
     ax = axes[0, 1]
-    _mason_axis(ax, series.masons)
-    for phi, colour in zip(series.phis, _colours(len(series.phis)), strict=True):
-        groups = [series.groups[(phi, m)] for m in series.masons if (phi, m) in series.groups]
-        _errorbar_mason(
-            ax,
-            [g.mason_number for g in groups],
-            [g.stats["diffusivity_yy"][0] for g in groups],
-            [g.stats["diffusivity_yy"][1] for g in groups],
-            color=colour,
-            label=rf"$\phi$ = {phi:g}",
-        )
+    _plot_against_mason(ax, series, "diffusivity_yy")
     ax.set_ylabel(label)
     ax.legend(fontsize="small")
     _title(fig, series)

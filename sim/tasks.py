@@ -210,6 +210,20 @@ def _bar(total: int, description: str, progress: bool) -> Any:
     return tqdm(total=total, desc=description, unit="task", file=sys.stderr, dynamic_ncols=True)
 
 
+def _outcome(future: Any, index: int, on_error: OnError) -> Any:
+    """A finished future's result, or the :class:`TaskFailure` of task ``index`` when it raised.
+
+    The exception is re-raised with ``on_error="raise"``: a task's own exception, or the pool's when its
+    worker died (``BrokenProcessPool`` of a process pool, ``KilledWorker`` of Dask).
+    """
+    try:
+        return future.result()
+    except Exception as exc:
+        if on_error == "raise":
+            raise
+        return _failure(index, exc)
+
+
 def _pool(
     task: Callable[[tuple[int, T]], Any], items: list[tuple[int, T]], workers: int, on_error: OnError
 ) -> Generator[tuple[int, Any], None, None]:
@@ -219,13 +233,7 @@ def _pool(
         futures: dict[Future[Any], int] = {pool.submit(task, item): item[0] for item in items}
         for future in as_completed(futures):
             index = futures[future]
-            try:
-                result = future.result()
-            except Exception as exc:  # the worker died (BrokenProcessPool) or, with "raise", the task raised
-                if on_error == "raise":
-                    raise
-                result = _failure(index, exc)
-            yield index, result
+            yield index, _outcome(future, index, on_error)
     except (KeyboardInterrupt, GeneratorExit):  # interrupted, or the caller stopped reading: stop the workers
         for process in list((getattr(pool, "_processes", None) or {}).values()):
             process.terminate()
@@ -250,13 +258,7 @@ def _dask(
         indices = {future.key: index for future, (index, _) in zip(futures, items, strict=True)}
         for future in dask_completed(futures):
             index = indices[future.key]
-            try:
-                result = future.result()
-            except Exception as exc:  # a worker died (KilledWorker) or, with "raise", the task raised
-                if on_error == "raise":
-                    raise
-                result = _failure(index, exc)
-            yield index, result
+            yield index, _outcome(future, index, on_error)
     except BaseException:  # a task's exception, an interrupt, or the caller stopped reading
         client.cancel(futures)
         raise

@@ -101,17 +101,25 @@ def minimum_image(
 
 
 @njit(cache=True)
+def separation_between(
+    first: np.ndarray, i: int, second: np.ndarray, j: int, box_length: float, offset: float
+) -> tuple[float, float, float]:
+    """Minimum image of ``second[j] - first[i]`` (rows of two ``(N, 3)`` position arrays, units a)."""
+    return minimum_image(
+        second[j, 0] - first[i, 0],
+        second[j, 1] - first[i, 1],
+        second[j, 2] - first[i, 2],
+        box_length,
+        offset,
+    )
+
+
+@njit(cache=True)
 def pair_separation(
     positions: np.ndarray, i: int, j: int, box_length: float, offset: float
 ) -> tuple[float, float, float, float]:
     """Minimum-image separation ``x_j - x_i`` of particles ``i`` and ``j`` and its length ``r`` (units a)."""
-    dx, dy, dz = minimum_image(
-        positions[j, 0] - positions[i, 0],
-        positions[j, 1] - positions[i, 1],
-        positions[j, 2] - positions[i, 2],
-        box_length,
-        offset,
-    )
+    dx, dy, dz = separation_between(positions, i, positions, j, box_length, offset)
     return dx, dy, dz, math.sqrt(dx * dx + dy * dy + dz * dz)
 
 

@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from sim.geometry.box import minimum_image
+from sim.geometry.box import separation_between
 
 __all__ = [
     "DIFFUSIVITY_FIT_START",
@@ -104,13 +104,7 @@ def accumulate_displacement(
     """
     affine_rate = shear_rate * time_step
     for p in range(displacement.shape[0]):
-        dx, dy, dz = minimum_image(
-            new_positions[p, 0] - old_positions[p, 0],
-            new_positions[p, 1] - old_positions[p, 1],
-            new_positions[p, 2] - old_positions[p, 2],
-            box_length,
-            offset,
-        )
+        dx, dy, dz = separation_between(old_positions, p, new_positions, p, box_length, offset)
         displacement[p, 0] += dx - affine_rate * (old_positions[p, 1] + 0.5 * dy)
         displacement[p, 1] += dy
         displacement[p, 2] += dz

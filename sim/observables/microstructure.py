@@ -50,16 +50,22 @@ in sheared dense suspensions most load-bearing pairs sit far below it (near the 
 
 
 @njit(cache=True)
-def _checked_pairs(
-    positions: np.ndarray, box_length: float, strain: float, cutoff: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Pair list within ``cutoff`` at the Lees–Edwards offset of ``strain`` (cut-off checked)."""
+def check_configuration(positions: np.ndarray, box_length: float, strain: float) -> None:
+    """``ValueError`` unless positions are ``(N, 3)``, ``box_length`` finite and > 0, ``strain`` finite."""
     if positions.ndim != 2 or positions.shape[1] != 3:
         raise ValueError("positions must have shape (N, 3)")
     if not (box_length > 0.0) or not math.isfinite(box_length):
         raise ValueError("box_length must be finite and > 0")
     if not math.isfinite(strain):
         raise ValueError("strain must be finite")
+
+
+@njit(cache=True)
+def _checked_pairs(
+    positions: np.ndarray, box_length: float, strain: float, cutoff: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pair list within ``cutoff`` at the Lees–Edwards offset of ``strain`` (cut-off checked)."""
+    check_configuration(positions, box_length, strain)
     if not (cutoff > 0.0) or cutoff > 0.5 * box_length:
         raise ValueError("the cut-off must be in (0, L/2] (minimum image)")
     offset = lees_edwards_offset(strain, box_length)

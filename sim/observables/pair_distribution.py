@@ -57,8 +57,9 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from sim.geometry.box import lees_edwards_offset, minimum_image
+from sim.geometry.box import lees_edwards_offset, pair_separation
 from sim.geometry.neighbors import build_pair_list
+from sim.observables.microstructure import check_configuration
 
 __all__ = [
     "DEFAULT_RADIAL_BIN_WIDTH",
@@ -99,12 +100,7 @@ def _check_histogram_arguments(
     slab_half_thickness: float,
 ) -> None:
     """``ValueError`` naming the first bad argument (compiled code takes constant messages)."""
-    if positions.ndim != 2 or positions.shape[1] != 3:
-        raise ValueError("positions must have shape (N, 3)")
-    if not (box_length > 0.0) or not math.isfinite(box_length):
-        raise ValueError("box_length must be finite and > 0")
-    if not math.isfinite(strain):
-        raise ValueError("strain must be finite")
+    check_configuration(positions, box_length, strain)
     half = 0.5 * box_length
     if not (r_max > 0.0) or r_max > half:
         raise ValueError("r_max must be in (0, L/2] (minimum image)")
@@ -170,13 +166,7 @@ def _add_all_pairs(
     n = positions.shape[0]
     for i in range(n):
         for j in range(i + 1, n):
-            dx, dy, dz = minimum_image(
-                positions[j, 0] - positions[i, 0],
-                positions[j, 1] - positions[i, 1],
-                positions[j, 2] - positions[i, 2],
-                box_length,
-                offset,
-            )
+            dx, dy, dz, _ = pair_separation(positions, i, j, box_length, offset)
             _bin_pair(dx, dy, dz, r_max, xy_half_width, slab_half_thickness, radial, planar)
 
 
@@ -227,6 +217,31 @@ def _add_pair_histograms(
 
 
 @njit(cache=True)
+def _new_pair_histograms(
+    positions: np.ndarray,
+    box_length: float,
+    strain: float,
+    r_max: float,
+    n_radial_bins: int,
+    xy_half_width: float,
+    n_xy_bins: int,
+    slab_half_thickness: float,
+    brute_force: bool,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Zeroed ``(K,)`` and ``(M, M)`` int64 counts filled by :func:`_add_pair_histograms` (see there)."""
+    if n_radial_bins < 1:
+        raise ValueError("n_radial_bins must be >= 1")
+    if n_xy_bins < 1:
+        raise ValueError("n_xy_bins must be >= 1")
+    radial = np.zeros(n_radial_bins, dtype=np.int64)
+    planar = np.zeros((n_xy_bins, n_xy_bins), dtype=np.int64)
+    _add_pair_histograms(
+        radial, planar, positions, box_length, strain, r_max, xy_half_width, slab_half_thickness, brute_force
+    )
+    return radial, planar
+
+
+@njit(cache=True)
 def pair_histograms(
     positions: np.ndarray,
     box_length: float,
@@ -261,16 +276,17 @@ def pair_histograms(
     References:
         Allen & Tildesley (2017), §2.6 and ch. 8; Foss & Brady (2000), J. Fluid Mech. 407, 167.
     """
-    if n_radial_bins < 1:
-        raise ValueError("n_radial_bins must be >= 1")
-    if n_xy_bins < 1:
-        raise ValueError("n_xy_bins must be >= 1")
-    radial = np.zeros(n_radial_bins, dtype=np.int64)
-    planar = np.zeros((n_xy_bins, n_xy_bins), dtype=np.int64)
-    _add_pair_histograms(
-        radial, planar, positions, box_length, strain, r_max, xy_half_width, slab_half_thickness, False
+    return _new_pair_histograms(
+        positions,
+        box_length,
+        strain,
+        r_max,
+        n_radial_bins,
+        xy_half_width,
+        n_xy_bins,
+        slab_half_thickness,
+        False,
     )
-    return radial, planar
 
 
 @njit(cache=True)
@@ -292,16 +308,17 @@ def pair_histograms_brute_force(
     References:
         Allen & Tildesley (2017), §2.6 and ch. 8.
     """
-    if n_radial_bins < 1:
-        raise ValueError("n_radial_bins must be >= 1")
-    if n_xy_bins < 1:
-        raise ValueError("n_xy_bins must be >= 1")
-    radial = np.zeros(n_radial_bins, dtype=np.int64)
-    planar = np.zeros((n_xy_bins, n_xy_bins), dtype=np.int64)
-    _add_pair_histograms(
-        radial, planar, positions, box_length, strain, r_max, xy_half_width, slab_half_thickness, True
+    return _new_pair_histograms(
+        positions,
+        box_length,
+        strain,
+        r_max,
+        n_radial_bins,
+        xy_half_width,
+        n_xy_bins,
+        slab_half_thickness,
+        True,
     )
-    return radial, planar
 
 
 def _positive(name: str, value: float, upper: float) -> float:
