@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,12 @@ from sim.observables.diffusion import (
     MsdAccumulator,
     diffusivity_fit_window,
     fit_diffusivity,
+)
+from sim.observables.microstructure import (
+    DEFAULT_CONTACT_GAP,
+    DEFAULT_FABRIC_CUTOFF,
+    contact_number,
+    fabric_tensor,
 )
 from sim.observables.pair_distribution import PairDistributionAccumulator
 from sim.simulation import Simulation, StepRecords
@@ -73,6 +79,11 @@ class RunObservables:
         msd: the MSD of the accumulated non-affine displacement over all origins (lags up to
             :data:`MSD_MAX_LAG_TIME`, at most :data:`MSD_MAX_LAGS` samples).
         note: why the samples start elsewhere than at the run's transient (empty when they do not).
+        fabric_sum: (3, 3) sum of the fabric tensors ``<n n>`` of the configurations ``g`` is sampled at
+            (pairs closer than :data:`~sim.observables.microstructure.DEFAULT_FABRIC_CUTOFF`).
+        contact_sum: sum of their contact numbers (gap below
+            :data:`~sim.observables.microstructure.DEFAULT_CONTACT_GAP`).
+        structure_samples: how many configurations the two sums hold.
     """
 
     sample_interval: float
@@ -81,6 +92,9 @@ class RunObservables:
     pair_distribution: PairDistributionAccumulator
     msd: MsdAccumulator
     note: str = ""
+    fabric_sum: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    contact_sum: float = 0.0
+    structure_samples: int = 0
 
     @classmethod
     def fresh(
@@ -157,7 +171,16 @@ class RunObservables:
         if clock < stop_time(self.next_sample_time, config.time_step):
             return False
         if (self.next_index - self.first_index) % PAIR_SAMPLE_STRIDE == 0:
-            self.pair_distribution.add(sim.state.positions, config.shear_rate * clock)
+            strain = config.shear_rate * clock
+            self.pair_distribution.add(sim.state.positions, strain)
+            if 2.0 * max(DEFAULT_FABRIC_CUTOFF, 2.0 + DEFAULT_CONTACT_GAP) <= config.box_length:
+                self.fabric_sum += fabric_tensor(
+                    sim.state.positions, config.box_length, strain, DEFAULT_FABRIC_CUTOFF
+                )
+                self.contact_sum += contact_number(
+                    sim.state.positions, config.box_length, strain, DEFAULT_CONTACT_GAP
+                )
+                self.structure_samples += 1
         self.msd.add(sim.state.displacement, clock)
         self.next_index += 1
         while stop_time(self.next_sample_time, config.time_step) <= clock:  # a step longer than the interval
@@ -173,6 +196,9 @@ class RunObservables:
             "note": np.array(self.note),
             **self.pair_distribution.arrays("pair_"),
             **self.msd.arrays("msd_"),
+            "fabric_sum": self.fabric_sum,
+            "contact_sum": np.array(self.contact_sum, dtype=np.float64),
+            "structure_samples": np.array(self.structure_samples, dtype=np.int64),
         }
 
     @classmethod
@@ -185,6 +211,12 @@ class RunObservables:
             pair_distribution=PairDistributionAccumulator.from_arrays(data, "pair_"),
             msd=MsdAccumulator.from_arrays(data, "msd_"),
             note=str(data["note"]),
+            # checkpoints written before the fabric was accumulated hold no sums: start them empty
+            fabric_sum=np.array(data["fabric_sum"], dtype=np.float64)
+            if "fabric_sum" in data
+            else np.zeros((3, 3)),
+            contact_sum=float(data["contact_sum"]) if "contact_sum" in data else 0.0,
+            structure_samples=int(data["structure_samples"]) if "structure_samples" in data else 0,
         )
 
     def results(self, config: SimulationConfig) -> dict[str, Any]:
@@ -224,6 +256,13 @@ class RunObservables:
             "observables_sample_interval": self.sample_interval,
             "observables_from_strain": self.first_index * self.sample_interval,
             "observables_note": self.note,
+            "fabric_tensor": (self.fabric_sum / self.structure_samples).tolist()
+            if self.structure_samples
+            else [[math.nan] * 3] * 3,
+            "contact_number": self.contact_sum / self.structure_samples
+            if self.structure_samples
+            else math.nan,
+            "structure_samples": self.structure_samples,
         }
 
     def write(self, out: Path) -> None:

@@ -65,6 +65,9 @@ OBSERVABLE_KEYS = (
     "pair_distribution_samples",
     "observables_from_strain",
     "observables_note",
+    "fabric_tensor",
+    "contact_number",
+    "structure_samples",
 )
 
 
@@ -143,6 +146,11 @@ def test_observables_contract_and_short_runs(tmp_path: Path) -> None:
     saved = sim.io.read_json(tmp_path / "o" / "result.json")
     assert np.isnan(saved["diffusivity_yy"]) and saved["msd_samples"] == 3
     assert saved["pair_distribution_samples"] == 1
+    # fabric and contact number of the configurations g is sampled at: <n n> has trace 1 and is symmetric
+    fabric = np.array(saved["fabric_tensor"])
+    assert saved["structure_samples"] == 1 and np.trace(fabric) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_array_equal(fabric, fabric.T)
+    assert saved["contact_number"] >= 0.0
     with np.load(tmp_path / "o" / "pair_distribution.npz") as data:
         assert data["g_xy"].shape == (data["x_edges"].size - 1, data["y_edges"].size - 1)
         assert data["g_r"].shape == (data["r_edges"].size - 1,) and int(data["samples"]) == 1
