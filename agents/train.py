@@ -105,13 +105,13 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     env_id, algo, seed = payload["env_id"], payload["algo"], int(payload["seed"])
     env_kwargs = dict(payload["env_kwargs"])
     hp = dict(payload["hyperparams"])
-    settings_env = make_env(env_id, {**env_kwargs, "progress": False})
-    settings = settings_env.unwrapped.settings()  # type: ignore[attr-defined]
-    settings_env.close()
+    progress = bool(payload.get("progress", True))
+    probe = make_env(env_id, {**env_kwargs, "progress": progress})  # settings now, start states below
     identity = {
         "env_id": env_id,
         "env_kwargs": env_kwargs,
-        "env_settings": settings,  # resolved defaults: a changed env default is a different run
+        # resolved defaults: a changed env default is a different run
+        "env_settings": probe.unwrapped.settings(),  # type: ignore[attr-defined]
         "algo": algo,
         "seed": seed,
         "hyperparams": hp,
@@ -125,10 +125,12 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             k: v for k, v in (old.get("hyperparams") or {}).items() if k != "n_timesteps"
         }
         if old_comparable != comparable:
+            probe.close()
             raise SystemExit(f"{out} holds a different run (config.yml differs); choose another --out")
         if (out / "result.json").exists():
             done = json.loads((out / "result.json").read_text())
             if int(done["timesteps"]) >= int(hp["n_timesteps"]):
+                probe.close()
                 return dict(done)  # finished (a larger n_timesteps continues it from its last checkpoint)
     out.mkdir(parents=True, exist_ok=True)
     config_file.write_text(yaml.safe_dump({**identity, "versions": versions()}, sort_keys=False))
@@ -140,9 +142,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     normalize = bool(hp.pop("normalize"))
     eval_freq = int(hp.pop("eval_freq"))
     checkpoint_freq = int(hp.pop("checkpoint_freq"))
-    progress = bool(payload.get("progress", True))
 
-    probe = make_env(env_id, {**env_kwargs, "progress": progress})
     library = probe.unwrapped.library()  # type: ignore[attr-defined]
     library.ensure(["train", "validation"], progress=progress)
     n_validation = probe.unwrapped.split_sizes["validation"]  # type: ignore[attr-defined]

@@ -1,7 +1,11 @@
-"""delta (lubrication regularisation) dependence of the high-Mn rise of eta_r (issue 11).
+"""delta (lubrication regularisation) dependence of eta_r at phi = 0.45 (issue 11).
 
-phi = 0.45, N = 100, strain 20 (averaged 5-20), seed 1, exact near field; delta = 1e-4 (default) and
-1e-3; Mn = 5, 20 and no field. Usage: ``python results/delta_dependence/run.py OUT`` (resumable).
+N = 100, strain 20 (averaged 5-20), seed 1, exact near field, field along y. Usage (resumable):
+
+    python results/delta_dependence/run.py OUT            # delta 1e-4 and 1e-3 at Mn = 5, 20, no field
+    python results/delta_dependence/run.py OUT --low-mn   # delta 1e-3 at Mn = 1, 0.1
+
+(delta = 1e-4 at low Mn is in results/validation_dip/exact.)
 """
 
 import math
@@ -10,9 +14,12 @@ import sys
 from sim import SimulationConfig
 from sim.sweep import run_sweep
 
+HIGH_MN = {1e-4: (5.0, 20.0, math.inf), 1e-3: (5.0, 20.0, math.inf)}
+LOW_MN = {1e-3: (1.0, 0.1)}
 
-def main(out: str) -> None:
-    for delta in (1e-4, 1e-3):
+
+def main(out: str, grid: dict[float, tuple[float, ...]]) -> None:
+    for delta, masons in grid.items():
         configs = [
             SimulationConfig(
                 n_particles=100,
@@ -23,16 +30,16 @@ def main(out: str) -> None:
                 seed=1,
                 lubrication_regularisation=delta,
             )
-            for mn in (5.0, 20.0, math.inf)
+            for mn in masons
         ]
         for config, r in zip(configs, run_sweep(configs, f"{out}/delta{delta:g}", processes=2), strict=True):
             print(
                 f"delta={delta:g} Mn={config.mason_number:g}: eta_r={r['relative_viscosity']:.2f} "
                 f"+- {r['relative_viscosity_stderr']:.2f}, N1={r['n1']:.2f}, N2={r['n2']:.2f}, "
-                f"min_gap={r['min_gap']:.2e}",
+                f"min_gap={r['min_gap']:.2e}, u_rms ratio={r['u_rms_dip'] / r['u_rms_shear']:.3g}",
                 flush=True,
             )
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1], LOW_MN if "--low-mn" in sys.argv[2:] else HIGH_MN)
