@@ -14,16 +14,20 @@ def _deviator(s: np.ndarray) -> np.ndarray:
     return s - np.trace(s) / 3.0 * np.eye(3)
 
 
+@pytest.mark.parametrize("delta", [0.0, 1e-3])
 @pytest.mark.parametrize("gap", [1e-3, 1e-4, 1e-5])
-def test_isolated_pair_near_contact_carries_no_deviatoric_interparticle_stress(gap: float) -> None:
+def test_isolated_pair_near_contact_carries_no_deviatoric_interparticle_stress(
+    gap: float, delta: float
+) -> None:
     """Independent limit: internal forces in a rigid body carry no particle stress (Batchelor 1970).
-    Lubrication makes a touching pair rigid along its line of centres, so (no regularisation) the
-    induced stresslet cancels the deviatoric virial up to O(gap): measured 2.5 * gap relative, bound
-    5 * gap. The isotropic part (a particle pressure) does not cancel: the stresslet is traceless."""
+    Lubrication makes a touching pair rigid along its line of centres, so the induced stresslet
+    cancels the deviatoric virial up to O(gap + delta): measured 2.5 gap + 2 delta relative (delta the
+    lubrication regularisation, which softens the pair), bound 5 (gap + delta). The isotropic part (a
+    particle pressure) does not cancel: the stresslet is traceless."""
     config = SimulationConfig(
         n_particles=2,
         volume_fraction=0.001,
-        lubrication_regularisation=0.0,
+        lubrication_regularisation=delta,
         overlap_min_gap=1e-7,
         initial_min_gap=1e-7,
     )
@@ -38,15 +42,17 @@ def test_isolated_pair_near_contact_carries_no_deviatoric_interparticle_stress(g
     expected = -force * (2 + gap) * np.outer(d, d) / config.box_length**3
     np.testing.assert_allclose(split.virial, expected, rtol=1e-9)
     virial = _deviator(split.virial)
-    assert np.linalg.norm(_deviator(split.total)) <= 5 * gap * np.linalg.norm(virial)
+    assert np.linalg.norm(_deviator(split.total)) <= 5 * (gap + delta) * np.linalg.norm(virial)
     assert abs(np.trace(split.induced)) < 1e-12 * np.linalg.norm(split.induced)
     assert np.trace(split.virial) < 0  # repulsion: a positive particle pressure -tr/3
 
 
 def test_sheared_suspension_repulsion_cancels_in_the_shear_stress() -> None:
     """Dense sheared configurations (phi = 0.40, N = 60, strain 1, 3 seeds): the deviatoric total is
-    0.5-0.8% of the virial's (measured); bound 3%. This is why the paper can call the interparticle
-    stress negligible while the virial alone is a quarter of eta_r at this phi (README)."""
+    3.0-4.5% of the virial's (measured at the default regularisation delta = 1e-3; 0.5-0.8% at 1e-4,
+    the softer pairs cancel less, as for the isolated pair above); bound 8%, while no cancellation
+    would give ~100%. This is why the paper can call the interparticle stress negligible while the
+    virial alone is a quarter of eta_r at this phi (README)."""
     for seed in (1, 2, 3):
         config = SimulationConfig(n_particles=60, volume_fraction=0.4, strain=1.0, seed=seed)
         sim = Simulation(config)
@@ -54,7 +60,7 @@ def test_sheared_suspension_repulsion_cancels_in_the_shear_stress() -> None:
         state = sim.state
         split = interparticle_stress(state.positions, state.strain, config)
         ratio = np.linalg.norm(_deviator(split.total)) / np.linalg.norm(_deviator(split.virial))
-        assert ratio < 0.03, (seed, ratio)
+        assert ratio < 0.08, (seed, ratio)
 
 
 def test_bad_positions_shape_is_named() -> None:

@@ -113,11 +113,16 @@ I_ZM12 = 21
 DEFAULT_LUBRICATION_CUTOFF = 0.5
 
 # Gap regularisation delta (units a): xi -> xi + delta bounds the squeeze resistance by 1/(4 delta)
-# (in units of 6 pi eta a). Mari et al. (2014) use 1e-3; we use 1e-4 because the viscosity is sensitive
-# to it while the PCG cost grows as it shrinks. phi = 0.45, N = 100, strain 3-8, dt = 2e-3: eta_r = 11.59
-# (187 PCG iterations per step) for delta = 1e-4 and 11.99 (260) for 1e-5; Maron-Pierce gives 12.25.
-# Below xi ~ delta the short-range repulsion (sigma = 1e-3) keeps surfaces apart.
-DEFAULT_LUBRICATION_REGULARISATION = 1.0e-4
+# (in units of 6 pi eta a). 1e-3 as in Mari et al. (2014) (and the default "roughness length" of their
+# LF_DEM code). The paper does not state its value, and the sheared-dipolophoresis results depend on it:
+# with 1e-4 a weak field (Mn >= 5) raised eta_r by 35-55% above pure shear at phi = 0.45 and turned N1
+# positive, because a touching pair is separated by shear only at ~ delta gammadot while the
+# (unlubricated) dipolophoretic velocity closes it at a finite speed; with 1e-3 the paper's collapse
+# onto pure shear and negative N1 come back (results/delta_dependence/). Pure shear at phi = 0.45
+# (N = 100, strain 20): eta_r = 10.28 (1e-3) against 10.88 (1e-4) and 11.99 (1e-5, strain 3-8);
+# Maron-Pierce gives 12.25. Below xi ~ delta the short-range repulsion (sigma = 1e-3) keeps surfaces
+# apart.
+DEFAULT_LUBRICATION_REGULARISATION = 1.0e-3
 
 # Singular coefficients of the near-contact forms (resistance_functions.md section 2):
 # column 0 multiplies 1/xi, column 1 multiplies log(1/xi). Rows in SCALAR_NAMES order.
