@@ -173,9 +173,11 @@ def run_simulation(
 
     Returns:
         The contents of ``result.json``: ``relative_viscosity``, ``relative_viscosity_stderr``, ``n1``,
-        ``n1_stderr``, ``n2``, ``n2_stderr``, ``strain``, ``steps``, ``n_particles``, ``volume_fraction``,
-        ``min_gap``, ``wall_seconds`` and per-contribution means. A standard error that needs more samples
-        than the run has after its transient (fewer than ``n_blocks``) is NaN. The observables add
+        ``n1_stderr``, ``n2``, ``n2_stderr``, ``particle_pressure`` (``-tr(Sigma^p)/3``),
+        ``particle_pressure_stderr``, ``strain``, ``steps``, ``n_particles``, ``volume_fraction``,
+        ``min_gap``, ``wall_seconds`` and per-contribution means (eta_r, N1, N2, particle pressure). A
+        standard error that needs more samples than the run has after its transient (fewer than
+        ``n_blocks``) is NaN. The observables add
         ``diffusivity_xx``, ``diffusivity_yy``, ``diffusivity_zz`` (units gammadot a^2; U0 a when quiescent;
         NaN, with the reason in ``diffusivity_note``, when the run is too short for the fit window),
         ``diffusivity_fit_window`` ``[start, end]`` (lags of the fit), ``diffusivity_note``,
@@ -296,6 +298,8 @@ def _write_results(
         "n1_stderr": rheo.n1_stderr,
         "n2": rheo.n2,
         "n2_stderr": rheo.n2_stderr,
+        "particle_pressure": rheo.particle_pressure,
+        "particle_pressure_stderr": rheo.particle_pressure_stderr,
         "strain": sim.state.strain,
         "steps": sim.state.step,
         "n_particles": config.n_particles,
@@ -318,7 +322,12 @@ def _write_results(
         "mean_time_step": float(records.time_step.mean()) if records.strain.size else math.nan,
         "min_time_step": float(records.time_step.min()) if records.strain.size else math.nan,
         "contributions": {
-            name: {"relative_viscosity": v[0], "n1": v[1], "n2": v[2]}
+            name: {
+                "relative_viscosity": v[0],
+                "n1": v[1],
+                "n2": v[2],
+                "particle_pressure": rheo.pressure_contributions[name],
+            }
             for name, v in rheo.contributions.items()
         },
         **observables.results(config),

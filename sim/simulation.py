@@ -10,13 +10,20 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from dataclasses import field as dataclass_field
 from typing import Any
 
 import numpy as np
 
 from sim.config import SimulationConfig
 from sim.geometry.configurations import random_packing
-from sim.observables.stress import N_CONTRIBUTIONS, STRESS_CONTRIBUTIONS, block_average, rheology
+from sim.observables.stress import (
+    N_CONTRIBUTIONS,
+    STRESS_CONTRIBUTIONS,
+    block_average,
+    particle_pressure,
+    rheology,
+)
 from sim.state import SimulationState
 from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters
 from sim.stepper import STATUS_MESSAGES, STATUS_OK, advance, stop_time
@@ -115,7 +122,9 @@ class RheologyResult:
     All stresses in units ``eta gammadot`` (``eps E0^2`` when quiescent); ``contributions`` maps each
     stress contribution name to its mean ``(eta_r, N1, N2)`` share; every mean is a time average.
     ``u_rms_dip`` and ``u_rms_shear`` are the RMS (over particles and time) of the dipolophoretic and of
-    the shear-and-repulsion disturbance velocities (paper §3.4, Fig. 7).
+    the shear-and-repulsion disturbance velocities (paper §3.4, Fig. 7). ``particle_pressure`` is
+    ``-tr(Sigma^p)/3`` (:func:`sim.observables.stress.particle_pressure`), with its block standard error
+    and its share per contribution in ``pressure_contributions``.
     """
 
     relative_viscosity: float
@@ -129,6 +138,9 @@ class RheologyResult:
     contributions: dict[str, tuple[float, float, float]]
     u_rms_dip: float = math.nan
     u_rms_shear: float = math.nan
+    particle_pressure: float = math.nan
+    particle_pressure_stderr: float = math.nan
+    pressure_contributions: dict[str, float] = dataclass_field(default_factory=dict)
 
 
 class Simulation:
@@ -325,6 +337,8 @@ def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> R
     b_eta = block_average(eta, n_blocks, weights)
     b_n1 = block_average(n1, n_blocks, weights)
     b_n2 = block_average(n2, n_blocks, weights)
+    b_pressure = block_average(particle_pressure(stress.sum(axis=1)), n_blocks, weights)
+    pressures: dict[str, float] = {}
     contributions: dict[str, tuple[float, float, float]] = {}
     total_weight = float(weights.sum())
     for index, name in enumerate(STRESS_CONTRIBUTIONS):
@@ -333,8 +347,10 @@ def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> R
             contributions[name] = tuple(  # type: ignore[assignment]
                 float(np.sum(weights * x) / total_weight) for x in (e, a, b)
             )
+            pressures[name] = float(np.sum(weights * particle_pressure(stress[:, index])) / total_weight)
         else:
             contributions[name] = (math.nan, math.nan, math.nan)
+            pressures[name] = math.nan
     if eta.size:
         u_dip = math.sqrt(float(np.sum(weights * selected.u_rms_dip**2) / total_weight))
         u_shear = math.sqrt(float(np.sum(weights * selected.u_rms_shear**2) / total_weight))
@@ -352,4 +368,7 @@ def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> R
         contributions,
         u_dip,
         u_shear,
+        b_pressure.mean,
+        b_pressure.stderr,
+        pressures,
     )

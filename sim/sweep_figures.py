@@ -53,6 +53,7 @@ QUANTITIES = {
     "u_rms_ratio": (None, None),
     "diffusivity_yy": ("diffusivity_yy", "diffusivity_yy_stderr"),
     "diffusivity_zz": ("diffusivity_zz", "diffusivity_zz_stderr"),
+    "particle_pressure": ("particle_pressure", "particle_pressure_stderr"),
 }
 """Summary quantity -> (``result.json`` key of the value, of its standard error)."""
 
@@ -618,6 +619,8 @@ SUMMARY_COLUMNS = (
     "diffusivity_yy_stderr",
     "diffusivity_zz",
     "diffusivity_zz_stderr",
+    "particle_pressure",
+    "particle_pressure_stderr",
 )
 """Columns of ``summary.csv`` (``mason_crossover`` is the ``Mn_c`` of the row's ``phi``; standard errors
 as in the figures; ``inf``/``nan`` written as such)."""

@@ -205,7 +205,13 @@ def test_json_contract_matches_a_direct_simulation(finished_run: tuple[Path, str
     assert result["steps"] >= CONFIG.n_steps and result["strain"] >= CONFIG.strain
     assert math.isnan(result["relative_viscosity_stderr"])  # 5 samples after the transient < 10 blocks
     for name, (eta, n1, n2) in rheology.contributions.items():
-        assert result["contributions"][name] == {"relative_viscosity": eta, "n1": n1, "n2": n2}
+        assert result["contributions"][name] == {
+            "relative_viscosity": eta,
+            "n1": n1,
+            "n2": n2,
+            "particle_pressure": rheology.pressure_contributions[name],
+        }
+    assert result["particle_pressure"] == rheology.particle_pressure
     assert result["wall_seconds"] > 0.0
     params = json.loads((out / "params.json").read_text())
     assert params["config"] == CONFIG.to_dict()

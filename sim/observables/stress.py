@@ -23,7 +23,13 @@ contribution (the isotropic ``-p_f I`` is not computed; it cancels in ``N1`` and
 The four dipolophoresis terms are ``physics.md`` §4; they scale as ``eps E0^2 = eta gammadot / Mn``.
 
 Rheology (paper §2.4): ``eta_r = Sigma_xy / (eta gammadot)``, ``N1 = Sigma_xx - Sigma_yy``,
-``N2 = Sigma_yy - Sigma_zz``.
+``N2 = Sigma_yy - Sigma_zz``. Particle pressure (Jeffrey, Morris & Brady 1993; the quiescent
+dipolophoresis results of Mirfendereski & Park 2021): ``Pi = -tr(Sigma^p) / 3``. In this model only the
+virials carry a trace (``repulsion`` and ``dep_virial``: repulsive forces give ``Pi > 0``, attractive
+ones ``Pi < 0``); the stresslets are traceless (the resistance-function stresslets and ``S0`` are
+deviatoric by construction, the pair ICEP sum includes its Lorentz term), so ``Pi`` is the
+interparticle-force pressure, without the hydrodynamic part that the traces of ``R_SU``, ``R_SE`` would
+add in full Stokesian dynamics.
 
 References:
     Batchelor, G. K. (1970) J. Fluid Mech. 41, 545-570.
@@ -75,6 +81,12 @@ def rheology(stress: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     stress = np.asarray(stress, dtype=float)
     return stress[..., 0, 1], stress[..., 0, 0] - stress[..., 1, 1], stress[..., 1, 1] - stress[..., 2, 2]
+
+
+def particle_pressure(stress: np.ndarray) -> np.ndarray:
+    """Particle pressure ``Pi = -tr(stress) / 3`` of (..., 3, 3) stress tensors (same units)."""
+    stress = np.asarray(stress, dtype=float)
+    return -np.trace(stress, axis1=-2, axis2=-1) / 3.0
 
 
 @dataclass(frozen=True)
