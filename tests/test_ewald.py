@@ -308,6 +308,7 @@ def test_radial_functions_and_vectorised_block() -> None:
         ux,
         uy,
         uz,
+        np.empty(40),
     )
     for i in range(40):
         phi1, phi2, phi3, rho2, rho3, rho4 = _radial_functions(math.sqrt(r2[i]), xi)
