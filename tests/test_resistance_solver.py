@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from sim.hydrodynamics.resistance_solver import (
+    NEGLIGIBLE_FORCING,
     block_matvec,
     cholesky_blocks,
     dilu_factor,
@@ -86,6 +87,31 @@ def test_zero_rhs_gives_zero() -> None:
     diag, off, pairs, _, _ = _random_system(3)
     n = diag.shape[0]
     sol, it, res = solve_resistance(diag, off, pairs, np.zeros((n, 6)), np.ones((n, 6)), 1e-8, 100)
+    assert it == 0 and res == 0.0 and not sol.any()
+
+
+@pytest.mark.parametrize("eisenstat", [True, False])
+def test_warm_start_at_a_faded_forcing_is_dropped(eisenstat: bool) -> None:
+    """A quiescent run's repulsion can fall by many orders between steps: a warm start at the old
+    scale (here 1e10 x the new solution) leaves a residual that rounding keeps far above tol ||b||.
+    The solver must then start from zero and converge to the dense solution (the stated tolerance, as
+    in test_matvec_and_solve_match_dense); before the fix it hit the iteration cap."""
+    diag, off, pairs, dense, rng = _random_system(4)
+    n = diag.shape[0]
+    b = 1e-15 * rng.normal(size=(n, 6))
+    exact = np.linalg.solve(dense, b.ravel())
+    guess = 1e10 * exact.reshape(n, 6) + 1e-6 * rng.normal(size=(n, 6))
+    sol, it, res = solve_resistance_in_order(diag, off, pairs, b, guess, 1e-10, 2000, eisenstat)
+    assert it > 0 and res <= 1e-10
+    assert np.linalg.norm(sol.ravel() - exact) / np.linalg.norm(exact) < 1e-6
+
+
+def test_negligible_forcing_gives_zero() -> None:
+    """Below NEGLIGIBLE_FORCING the CG inner products would underflow: the solution is zero."""
+    diag, off, pairs, _, rng = _random_system(5)
+    n = diag.shape[0]
+    b = 0.5 * NEGLIGIBLE_FORCING * rng.normal(size=(n, 6)) / np.sqrt(6 * n)
+    sol, it, res = solve_resistance(diag, off, pairs, b, np.ones((n, 6)), 1e-8, 100)
     assert it == 0 and res == 0.0 and not sol.any()
 
 
