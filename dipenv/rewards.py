@@ -20,11 +20,11 @@ DEFAULT_ENERGY_WEIGHT = 1.0
 DEFAULT_FAILURE_PENALTY = 50.0
 """Reward of a failed step and of each step an episode loses by failing (units eta gammadot)."""
 
-DEFAULT_TARGET_VISCOSITY = {0.45: 7.5}
+DEFAULT_TARGET_VISCOSITY = {0.45: 6.1}
 """Default targets by volume fraction: the lowest time-averaged ``eta_r`` that a constant field reaches
-in ``dipenv/FieldMagnitude-v0`` (N = 64), rounded: 7.45 +- 0.40 at Mn = 0.5 and 7.52 +- 0.30 at Mn = 0.2
-(mean and standard error over the 16 test start states, second half of each episode; no field: 11.15,
-Mn = 0.1: 8.61), from ``results/open_loop/FieldMagnitude-v0`` (README: open-loop baseline; the command
+in ``dipenv/FieldMagnitude-v0`` (N = 64), rounded: 6.15 +- 0.28 at Mn = 0.5 and 6.23 +- 0.34 at Mn = 1
+(mean and standard error over the 16 test start states, second half of each episode; no field: 10.16,
+Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0`` (README: open-loop baseline; the command
 is in its ``command.txt``). For other volume fractions pass ``target_viscosity`` explicitly."""
 
 

@@ -525,7 +525,10 @@ _DOC_COMMON = """
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version. Revised before any release (2026-12-02): the simulator's lubrication
+      regularisation became 1e-3 (was 1e-4) and the default target 6.1 (was 7.5); ``settings()``
+      records both, so stored open-loop points and training runs of the earlier revision are not
+      reused.
     """
 
 
