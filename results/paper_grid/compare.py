@@ -49,17 +49,31 @@ class Grid:
         return value[0] if value is not None else math.nan
 
 
+SHEAR_PARTS = ("solvent", "stokes_drag", "lubrication", "repulsion")
+DIP_PARTS = ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
+
+
+def _parts(group: Group, key: str) -> str:
+    """Seed-mean of the shear-and-repulsion and of the dipolophoresis parts of ``key``."""
+    shear = [sum(r["contributions"][n][key] for n in SHEAR_PARTS) for r in group.results]
+    dip = [sum(r["contributions"][n][key] for n in DIP_PARTS) for r in group.results]
+    return f"{sum(shear) / len(shear):.2f} / {sum(dip) / len(dip):.2f}"
+
+
 def values_table(grid: Grid) -> str:
     lines = [
-        "| phi | Mn | seeds | eta_r | N1 | N2 | Pi | U_rms ratio | D_yy |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| phi | Mn | seeds | eta_r | N1 | N2 | eta_r shear / DIP | N1 shear / DIP | N2 shear / DIP "
+        "| Pi | U_rms ratio | D_yy | steps/strain |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for (phi, mn), group in sorted(grid.series.groups.items()):
         stats = group.stats
+        steps = sum(r["steps"] / r["strain"] for r in group.results) / len(group.results)
         lines.append(
             f"| {phi:.2f} | {_mason(mn)} | {len(group.results)} | {_fmt(stats['eta_r'])} "
-            f"| {_fmt(stats['n1'])} | {_fmt(stats['n2'])} | {_fmt(stats.get('particle_pressure'))} "
-            f"| {_fmt(stats['u_rms_ratio'])} | {_fmt(stats['diffusivity_yy'])} |"
+            f"| {_fmt(stats['n1'])} | {_fmt(stats['n2'])} | {_parts(group, 'relative_viscosity')} "
+            f"| {_parts(group, 'n1')} | {_parts(group, 'n2')} | {_fmt(stats.get('particle_pressure'))} "
+            f"| {_fmt(stats['u_rms_ratio'])} | {_fmt(stats['diffusivity_yy'])} | {steps:.0f} |"
         )
     return "\n".join(lines) + "\n"
 
