@@ -596,8 +596,7 @@ def _summary(config: SimulationConfig, result: dict[str, Any], out: str) -> str:
         f"  eta_r = {result['relative_viscosity']:.4f} +/- {eta_error}",
         f"  N1    = {result['n1']:.4f} +/- {_stderr_text(result['n1_stderr'])}  (units {units})",
         f"  N2    = {result['n2']:.4f} +/- {_stderr_text(result['n2_stderr'])}",
-        f"  Pi    = {result.get('particle_pressure', math.nan):.4f} "
-        f"+/- {_stderr_text(result.get('particle_pressure_stderr', math.nan))}"
+        f"  Pi    = {result['particle_pressure']:.4f} +/- {_stderr_text(result['particle_pressure_stderr'])}"
         "  (particle pressure -tr(Sigma^p)/3)",
     ]
     if not math.isfinite(result["relative_viscosity_stderr"]):

@@ -15,6 +15,7 @@ import argparse
 import math
 from pathlib import Path
 
+from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, SHEAR_CONTRIBUTIONS, STRESS_CONTRIBUTIONS
 from sim.sweep_figures import Group, Series, load_sweep
 
 Value = tuple[float, float]
@@ -49,8 +50,8 @@ class Grid:
         return value[0] if value is not None else math.nan
 
 
-SHEAR_PARTS = ("solvent", "stokes_drag", "lubrication", "repulsion")
-DIP_PARTS = ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
+SHEAR_PARTS = tuple(STRESS_CONTRIBUTIONS[k] for k in SHEAR_CONTRIBUTIONS)
+DIP_PARTS = tuple(STRESS_CONTRIBUTIONS[k] for k in DIPOLOPHORESIS_CONTRIBUTIONS)
 
 
 def _parts(group: Group, key: str) -> str:

@@ -145,6 +145,20 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _initial_residual(
+    diag: np.ndarray, off: np.ndarray, pairs: np.ndarray, rhs: np.ndarray, x: np.ndarray, bnorm: float
+) -> tuple[np.ndarray, float]:
+    """Residual ``rhs - A x`` of the warm start ``x`` and its norm; a warm start worse than none
+    (residual above ``||rhs||``, module docstring) is replaced by zero in place."""
+    r = rhs - block_matvec(diag, off, pairs, x)
+    rnorm = math.sqrt(_dot(r, r))
+    if rnorm > bnorm:
+        x[:, :] = 0.0
+        return rhs.copy(), bnorm
+    return r, rnorm
+
+
+@njit(cache=True)
 def pairs_are_sorted(pairs: np.ndarray) -> bool:
     """True if every pair has ``i < j`` and ``i`` never decreases (the DILU sweeps need this order)."""
     for k in range(pairs.shape[0]):
@@ -336,12 +350,7 @@ def _eisenstat_pcg(
                 for m in range(min(a, b) + 1):
                     s += chol[p, a, m] * chol[p, b, m]
                 e_blocks[p, a, b] = 2.0 * s - diag[p, a, b]
-    r = rhs - block_matvec(diag, off, pairs, x)
-    rnorm = math.sqrt(_dot(r, r))
-    if rnorm > bnorm:  # the warm start is worse than none (module docstring): start from zero
-        x[:, :] = 0.0
-        r = rhs.copy()
-        rnorm = bnorm
+    r, rnorm = _initial_residual(diag, off, pairs, rhs, x, bnorm)
     if rnorm <= tolerance * bnorm:
         return 0, rnorm / bnorm
     u = np.empty((n, 6))
@@ -509,12 +518,7 @@ def solve_resistance_in_order(
     acc_buf = np.empty(6)
     tmp_buf = np.empty(6)
     work_buf = np.empty(6)
-    r = rhs - block_matvec(diag, off, pairs, x)
-    rnorm = math.sqrt(_dot(r, r))
-    if rnorm > bnorm:  # the warm start is worse than none: start from zero
-        x[:, :] = 0.0
-        r = rhs.copy()
-        rnorm = bnorm
+    r, rnorm = _initial_residual(diag, off, pairs, rhs, x, bnorm)
     if rnorm <= tolerance * bnorm:
         return x, 0, rnorm / bnorm
     z = np.empty((n, 6))
