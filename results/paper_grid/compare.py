@@ -201,7 +201,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("sweep", type=Path, help="folder written by python -m sim sweep")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default: the sweep folder)")
     args = parser.parse_args(argv)
-    series = [s for s in load_sweep(args.sweep) if s.key and "dip" in str(s.key)] or load_sweep(args.sweep)
+    try:
+        loaded = load_sweep(args.sweep)
+    except (FileNotFoundError, ValueError) as exc:
+        parser.error(str(exc))
+    series = [s for s in loaded if s.key and "dip" in str(s.key)] or loaded
     grid = Grid(series[0])
     out = args.out or args.sweep
     out.mkdir(parents=True, exist_ok=True)
