@@ -14,7 +14,8 @@ interval (and the IQM where there are >= 5 seeds) of the per-seed averages of th
 over the second half of each episode, the field energy ``<1/Mn>`` over that half and the return; for
 the baselines (no field and the best constant field for the reward) the same over start states. Plots:
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
-fields' front with the policies on it).
+fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
+constant-field front and its action variation (:mod:`agents.comparison`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from agents.comparison import action_variation, front_points, position
 from agents.open_loop import plot_pareto, read_json, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
@@ -164,6 +166,50 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def verdicts(
+    rows: list[dict[str, Any]], front: list[tuple[float, float]], records: list[list[dict[str, Any]]]
+) -> list[dict[str, Any]]:
+    """Per policy row (with its runs' records): position against the front, per-seed gaps, variation."""
+    out = []
+    for row, runs in zip(rows, records, strict=True):
+        eta, energy = row["eta"], row["energy"]
+        where = position(front, energy["mean"], eta["mean"], eta["ci_low"], eta["ci_high"])
+        gaps = [
+            e - position(front, en, e, math.nan, math.nan)["front_eta"]
+            for e, en in zip(row["per_seed"]["eta"], row["per_seed"]["energy"], strict=True)
+            if math.isfinite(e) and math.isfinite(en)
+        ]
+        out.append(
+            {
+                "name": row["name"],
+                "energy": energy["mean"],
+                "eta": eta["mean"],
+                **where,
+                "seeds_below_front": sum(g < 0 for g in gaps),
+                "seeds": len(gaps),
+                **action_variation([e for r in runs for e in r["episodes"]]),
+            }
+        )
+    return out
+
+
+def format_verdicts(items: list[dict[str, Any]]) -> str:
+    lines = [
+        "| policy | field energy | eta_r | front eta_r at that energy | eta_r - front "
+        "| front energy for that eta_r | seeds below the front | action std (2nd half) | field off "
+        "| Mn used (10-90%) | verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for v in items:
+        lines.append(
+            f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
+            f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
+            f"{v['seeds_below_front']}/{v['seeds']} | {v['action_std']:.3f} | {100 * v['off_share']:.0f}% | "
+            f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} |"
+        )
+    return "\n".join(lines)
+
+
 def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
     """Field (Mn; off drawn above the top) and eta_r against strain for one start state."""
     import matplotlib
@@ -258,7 +304,22 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "are 95% Student-t over training seeds (policies) or start states (constant fields).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    write_json(args.out / "results.json", {"split": split, "indices": indices, "rows": rows})
+    summary = summarise_points(points)
+    policy_rows = rows[len(rows) - len(groups) :]
+    items = verdicts(
+        policy_rows,
+        front_points(summary),
+        [[r for r, o in zip(records, owners, strict=True) if o == name] for name in groups],
+    )
+    verdict = (
+        "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
+        "agents.comparison); action statistics over the second half of the episodes.\n\n"
+        + format_verdicts(items)
+    )
+    (args.out / "verdict.md").write_text(verdict + "\n")
+    write_json(
+        args.out / "results.json", {"split": split, "indices": indices, "rows": rows, "verdicts": items}
+    )
     policies = [
         {
             "name": r["name"],
@@ -267,13 +328,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             "eta_ci_high": r["eta"]["ci_high"],
             "energy": r["energy"]["mean"],
         }
-        for r in rows[len([b for b in baselines if b[1] is not None]) :]
+        for r in policy_rows
     ]
     for p in policies:
         for k in ("eta_ci_low", "eta_ci_high"):
             if math.isnan(p[k]):
                 p[k] = p["eta"]
-    plot_pareto(summarise_points(points), args.out / "pareto.png", policies)
+    plot_pareto(summary, args.out / "pareto.png", policies)
     first = indices[0]
     curves = []
     for name, record in baselines:
@@ -285,8 +346,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             (f"{name} seed {record['seed']}", e["trace"]) for e in record["episodes"] if e["index"] == first
         ]
     plot_traces(curves, args.out / "traces.png")
-    print(header + table)
-    return {"rows": rows}
+    print(header + table + "\n\n" + verdict)
+    return {"rows": rows, "verdicts": items}
 
 
 if __name__ == "__main__":

@@ -148,11 +148,15 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     evaluate.main([str(ppo), str(sac), "--baseline", str(baseline), "--out", str(out)])
     printed = capsys.readouterr().out
     assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
-    for name in ("table.md", "results.json", "traces.png", "pareto.png"):
+    for name in ("table.md", "results.json", "traces.png", "pareto.png", "verdict.md"):
         assert (out / name).exists(), name
     results = json.loads((out / "results.json").read_text())
     ppo_row = next(r for r in results["rows"] if r["name"] == "ppo (ppo)")
     assert ppo_row["samples"] == "2 training seeds" and len(ppo_row["per_seed"]["eta"]) == 2
+    verdict = next(v for v in results["verdicts"] if v["name"] == "ppo (ppo)")
+    assert verdict["seeds"] == 2 and 0.0 <= verdict["off_share"] <= 1.0 and verdict["action_std"] >= 0.0
+    assert verdict["eta_minus_front"] == pytest.approx(verdict["eta"] - verdict["front_eta"])
+    assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
 
 def test_train_with_subprocess_envs(tmp_path: Path) -> None:

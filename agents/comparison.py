@@ -1,0 +1,105 @@
+"""Does a policy beat constant fields? Its position against the constant-field front, and its variation.
+
+The open-loop points are ``(E_k, eta_k)``: field energy ``E = <1/Mn>`` (``eta gammadot`` per unit strain
+in simulation units; 0 with the field off) and the time-averaged ``eta_r`` over the second half of the
+episode. Their Pareto front (no point has both lower ``eta_r`` and lower energy), sorted by energy, is
+joined by straight lines and held flat beyond its last point (a stronger field is never required to be
+used). For a policy at ``(E_p, eta_p)``:
+
+* ``front_eta``: the front's ``eta_r`` at ``E_p``; ``eta_p`` below it is "lower eta_r at equal energy".
+* ``front_energy``: the least energy at which the front reaches ``eta_p`` (``inf`` if it never does);
+  ``E_p`` below it is "equal eta_r at lower energy".
+
+Joining adjacent front points linearly is what switching between the two constant fields for a fraction of
+the time would give if the suspension followed each field at once (it does not: the relaxation strains are
+0.5-2), so the straight segments are a demanding baseline between the measured points, not a measurement.
+
+The verdict uses the policy's 95% interval over training seeds: "below the front" if its upper end is
+below ``front_eta``, "above" if its lower end is above, otherwise "on the front". The action variation
+(second half of each episode) tells whether a policy is more than a constant: the standard deviation of its
+action (in the action box, [-1, 1]), the share of intervals with the field off, and the 10th-90th
+percentile range of the Mason numbers it used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+
+def front_points(rows: Sequence[dict[str, Any]]) -> list[tuple[float, float]]:
+    """The Pareto points ``(energy, eta_r)`` of :func:`agents.open_loop.summarise_points` rows, by energy."""
+    points = sorted((float(r["energy"]), float(r["eta_second_half"])) for r in rows if r["pareto"])
+    if not points:
+        raise ValueError("rows: no Pareto point (every row has pareto=False)")
+    return points
+
+
+def front_eta(front: Sequence[tuple[float, float]], energy: float) -> float:
+    """The front's ``eta_r`` at ``energy`` (linear between points, flat beyond the ends)."""
+    if not math.isfinite(energy) or energy < 0:
+        raise ValueError(f"energy must be finite and >= 0, got {energy}")
+    e = np.array([p[0] for p in front])
+    eta = np.array([p[1] for p in front])
+    return float(np.interp(energy, e, eta))
+
+
+def front_energy(front: Sequence[tuple[float, float]], eta: float) -> float:
+    """The least energy at which the front reaches ``eta`` (``inf`` below its lowest ``eta_r``)."""
+    if not math.isfinite(eta):
+        raise ValueError(f"eta must be finite, got {eta}")
+    if eta >= front[0][1]:
+        return front[0][0]
+    for (e0, y0), (e1, y1) in zip(front[:-1], front[1:], strict=True):
+        if y1 <= eta:
+            return e0 + (e1 - e0) * (y0 - eta) / (y0 - y1)
+    return math.inf
+
+
+def position(
+    front: Sequence[tuple[float, float]], energy: float, eta: float, eta_low: float, eta_high: float
+) -> dict[str, Any]:
+    """Where a policy sits against the front (see the module docstring); intervals may be NaN."""
+    reference = front_eta(front, energy)
+    low = eta if math.isnan(eta_low) else eta_low
+    high = eta if math.isnan(eta_high) else eta_high
+    if high < reference:
+        verdict = "below the constant-field front (lower eta_r at equal energy)"
+    elif low > reference:
+        verdict = "above the constant-field front (a constant field does better)"
+    else:
+        verdict = "on the constant-field front (within the 95% interval)"
+    return {
+        "front_eta": reference,
+        "eta_minus_front": eta - reference,
+        "front_energy": front_energy(front, eta),
+        "verdict": verdict,
+    }
+
+
+def action_variation(episodes: Sequence[dict[str, Any]]) -> dict[str, float]:
+    """Second-half action statistics over episodes with a ``trace`` (see the module docstring)."""
+    stds, off, used = [], [], []
+    for episode in episodes:
+        trace = episode["trace"]
+        n = len(trace["action"])
+        if n == 0:
+            continue
+        half = slice(n // 2, n)
+        actions = np.asarray(trace["action"], dtype=float)[half]
+        stds.append(float(actions.std(axis=0).mean()))
+        mason = np.array([float(m) for m in trace["mason_number"]])[half]
+        off.append(float(np.mean(~np.isfinite(mason))))
+        used.extend(mason[np.isfinite(mason)].tolist())
+    if not stds:
+        return {"action_std": math.nan, "off_share": math.nan, "mason_p10": math.nan, "mason_p90": math.nan}
+    p10, p90 = (float(v) for v in np.percentile(used, [10, 90])) if used else (math.nan, math.nan)
+    return {
+        "action_std": float(np.mean(stds)),
+        "off_share": float(np.mean(off)),
+        "mason_p10": p10,
+        "mason_p90": p90,
+    }

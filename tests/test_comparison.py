@@ -1,0 +1,70 @@
+"""agents.comparison: a policy against the constant-field front, on a front worked by hand."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from agents.comparison import action_variation, front_energy, front_eta, front_points, position
+from agents.open_loop import summarise_points
+
+# A front (energy, eta_r): off 10, Mn 2 at 8, Mn 1 at 6, Mn 0.5 at 5.5 (energy = 1/Mn).
+FRONT = [(0.0, 10.0), (0.5, 8.0), (1.0, 6.0), (2.0, 5.5)]
+
+
+def test_front_eta_interpolates_linearly_and_holds_flat() -> None:
+    assert front_eta(FRONT, 0.0) == 10.0
+    assert front_eta(FRONT, 0.75) == pytest.approx(7.0, abs=1e-14)  # halfway between 8 and 6
+    assert front_eta(FRONT, 1.5) == pytest.approx(5.75, abs=1e-14)
+    assert front_eta(FRONT, 20.0) == 5.5  # beyond the strongest front field: flat
+    with pytest.raises(ValueError, match="energy"):
+        front_eta(FRONT, -0.1)
+    with pytest.raises(ValueError, match="energy"):
+        front_eta(FRONT, math.nan)
+
+
+def test_front_energy_is_the_inverse_on_the_front() -> None:
+    assert front_energy(FRONT, 11.0) == 0.0  # no field already reaches it
+    assert front_energy(FRONT, 7.0) == pytest.approx(0.75, abs=1e-14)
+    assert front_energy(FRONT, 5.75) == pytest.approx(1.5, abs=1e-14)
+    assert front_energy(FRONT, 5.0) == math.inf  # below every constant field
+    for energy in (0.1, 0.6, 1.9):
+        assert front_energy(FRONT, front_eta(FRONT, energy)) == pytest.approx(energy, abs=1e-12)
+
+
+def test_position_uses_the_interval() -> None:
+    below = position(FRONT, 0.5, 6.5, 6.2, 6.8)  # front at 8 there
+    assert below["verdict"].startswith("below") and below["eta_minus_front"] == pytest.approx(-1.5)
+    assert below["front_energy"] == pytest.approx(0.875)  # 8 -> 6 over 0.5 -> 1: 6.5 at 0.875
+    assert position(FRONT, 0.5, 7.5, 6.9, 8.1)["verdict"].startswith("on")
+    assert position(FRONT, 1.0, 7.0, 6.5, 7.5)["verdict"].startswith("above")
+    assert position(FRONT, 1.0, 5.9, math.nan, math.nan)["verdict"].startswith("below")  # one seed
+
+
+def test_front_points_are_the_pareto_rows_of_summarise_points() -> None:
+    def record(label: str, eta: float, energy: float) -> dict:
+        episode = {"eta_second_half": eta, "energy_second_half": energy, "return": -1.0, "failed": False}
+        return {
+            "label": label,
+            "mason_number": 1.0,
+            "direction": None,
+            "action": [0.0],
+            "episodes": [episode],
+        }
+
+    rows = summarise_points(
+        [record("off", 10, 0), record("Mn20", 12, 0.05), record("Mn1", 6, 1), record("Mn0.1", 7, 10)]
+    )
+    assert front_points(rows) == [(0.0, 10.0), (1.0, 6.0)]  # Mn20 and Mn0.1 are dominated
+
+
+def test_action_variation_by_hand() -> None:
+    trace = {"action": [[0.0], [0.0], [1.0], [-1.0]], "mason_number": ["inf", 1.0, "inf", 2.0]}
+    stats = action_variation([{"trace": trace}])
+    # second half: actions 1, -1 (population std 1); field off in one of two intervals; Mn used: 2 only
+    assert stats["action_std"] == pytest.approx(1.0)
+    assert stats["off_share"] == pytest.approx(0.5)
+    assert stats["mason_p10"] == stats["mason_p90"] == 2.0
+    constant = {"action": [[0.3]] * 6, "mason_number": [1.0] * 6}
+    assert action_variation([{"trace": constant}])["action_std"] == 0.0
