@@ -15,7 +15,8 @@ over the second half of each episode, the field energy ``<1/Mn>`` over that half
 the baselines (no field and the best constant field for the reward) the same over start states. Plots:
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
 fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
-constant-field front and its action variation (:mod:`agents.comparison`).
+constant-field front and its action variation (:mod:`agents.comparison`). ``learning.png``: each run's
+validation return (its ``EvalCallback`` log) against training steps, with the constant fields' returns.
 """
 
 from __future__ import annotations
@@ -234,6 +235,35 @@ def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
     plt.close(fig)
 
 
+def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, float]], path: Path) -> None:
+    """Validation return (mean over the validation states) against environment steps, one line per run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for k, (name, runs) in enumerate(groups.items()):
+        for j, run in enumerate(runs):
+            log = run / "eval" / "evaluations.npz"
+            if not log.exists():
+                continue
+            with np.load(log) as data:
+                steps, returns = data["timesteps"], data["results"].mean(axis=1)
+            ax.plot(
+                steps, returns, "o-", ms=3, color=colours[k % len(colours)], label=name if j == 0 else None
+            )
+    for (name, value), style in zip(baselines, ("--", ":", "-."), strict=False):
+        ax.axhline(value, color="0.3", ls=style, lw=1, label=f"{name} (test states)")
+    ax.set_xlabel("environment steps")
+    ax.set_ylabel("episode return (validation states)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m agents.evaluate",
@@ -346,6 +376,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             (f"{name} seed {record['seed']}", e["trace"]) for e in record["episodes"] if e["index"] == first
         ]
     plot_traces(curves, args.out / "traces.png")
+    plot_learning(
+        groups,
+        [(r["name"], r["return"]["mean"]) for r in rows[: len(rows) - len(groups)]],
+        args.out / "learning.png",
+    )
     print(header + table + "\n\n" + verdict)
     return {"rows": rows, "verdicts": items}
 

@@ -148,7 +148,7 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     evaluate.main([str(ppo), str(sac), "--baseline", str(baseline), "--out", str(out)])
     printed = capsys.readouterr().out
     assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
-    for name in ("table.md", "results.json", "traces.png", "pareto.png", "verdict.md"):
+    for name in ("table.md", "results.json", "traces.png", "pareto.png", "verdict.md", "learning.png"):
         assert (out / name).exists(), name
     results = json.loads((out / "results.json").read_text())
     ppo_row = next(r for r in results["rows"] if r["name"] == "ppo (ppo)")
