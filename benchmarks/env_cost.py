@@ -1,0 +1,100 @@
+"""Cost of one environment per strain at each constant field: simulator steps, seconds, solver work.
+
+    python benchmarks/env_cost.py [--env dipenv/FieldMagnitude-v0] [--mason off,20,5,2,1,0.5,0.2,0.1,0.05]
+        [--intervals 8] [--states 2] [--skip 2]
+
+For each field, ``--states`` training start states each hold the constant field for ``--skip`` untimed
+intervals (the structure adapts to the field: switching on at low Mn costs more at first) and then
+``--intervals`` timed ones. Printed per field: simulator steps per strain (the adaptive step at low Mn),
+seconds per strain and per simulator step, mean PCG iterations and overlap-removal sweeps per step. One
+process; the numbers are for the machine and load printed in the header (1-minute load average).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import time
+
+import numpy as np
+
+from agents.rollout import make_env
+from dipenv.actions import action_from_direction
+
+
+def action_for(env: object, mason: float) -> np.ndarray:
+    """The strength action that commands ``mason`` (inf: off) in this env's mapping."""
+    unwrapped = env.unwrapped  # type: ignore[attr-defined]
+    shape = unwrapped.action_space.shape
+    action = np.zeros(shape, dtype=np.float32)
+    action[0] = unwrapped.mapping.action_for(mason)
+    if shape[0] == 3:  # vector env: field along y, the magnitude env's direction
+        action[1:] = action_from_direction((0.0, 1.0, 0.0))
+    return action
+
+
+def measure(env_id: str, mason: float, states: int, skip: int, intervals: int) -> dict[str, float]:
+    env = make_env(env_id, {"progress": False})
+    seconds = strain = 0.0
+    steps = 0
+    iterations, sweeps = [], []
+    for index in range(states):
+        env.reset(seed=0, options={"split": "train", "index": index})
+        action = action_for(env, mason)
+        for _ in range(skip):
+            env.step(action)
+        for _ in range(intervals):
+            tic = time.perf_counter()
+            _, _, terminated, truncated, info = env.step(action)
+            seconds += time.perf_counter() - tic
+            if info["simulation_failed"]:
+                raise RuntimeError(f"Mn {mason}: {info['failure_message']}")
+            strain += env.unwrapped.control_interval  # type: ignore[attr-defined]
+            steps += info["sim_steps"]
+            iterations.append(info["solver_iterations"] * info["sim_steps"])
+            sweeps.append(info["overlap_sweeps"] * info["sim_steps"])
+    env.close()
+    return {
+        "steps_per_strain": steps / strain,
+        "seconds_per_strain": seconds / strain,
+        "ms_per_step": 1e3 * seconds / steps,
+        "iterations": float(np.sum(iterations)) / steps,
+        "sweeps": float(np.sum(sweeps)) / steps,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--env", default="dipenv/FieldMagnitude-v0")
+    parser.add_argument("--mason", default="off,20,5,2,1,0.5,0.2,0.1,0.05")
+    parser.add_argument("--intervals", type=int, default=8)
+    parser.add_argument("--states", type=int, default=2)
+    parser.add_argument("--skip", type=int, default=2)
+    args = parser.parse_args()
+    masons = [math.inf if m == "off" else float(m) for m in args.mason.split(",")]
+    env = make_env(args.env, {"progress": True})
+    env.unwrapped.library().ensure(["train"])  # type: ignore[attr-defined]
+    env.close()
+    measure(args.env, 1.0, 1, 0, 1)  # compiled-kernel cache loaded, not timed
+    print(
+        f"{args.env}; {args.states} states x {args.intervals} intervals after {args.skip} untimed; "
+        f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores at start"
+    )
+    print("| Mn | steps/strain | s/strain | ms/step | PCG iterations/step | overlap sweeps/step |")
+    print("|---|---|---|---|---|---|")
+    for mason in masons:
+        r = measure(args.env, mason, args.states, args.skip, args.intervals)
+        label = "off" if math.isinf(mason) else f"{mason:g}"
+        print(
+            f"| {label} | {r['steps_per_strain']:.0f} | {r['seconds_per_strain']:.2f} "
+            f"| {r['ms_per_step']:.2f} | {r['iterations']:.0f} | {r['sweeps']:.2f} |",
+            flush=True,
+        )
+    print(f"load average {os.getloadavg()[0]:.1f} at the end")
+
+
+if __name__ == "__main__":
+    main()
