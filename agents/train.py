@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 from agents.tasks import parse_seeds, run_tasks
@@ -208,6 +209,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             PhysicsLoggerCallback(),
         ]
     )
+    if latest is not None:
+        _restore_eval_history(callbacks.callbacks[1], out / "eval" / "evaluations.npz", steps_done)
     tic = time.perf_counter()
     remaining = max(total - steps_done, 0)
     if remaining:
@@ -239,6 +242,21 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     eval_env.close()
     (out / "result.json").write_text(json.dumps(result, indent=1))
     return result
+
+
+def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:
+    """A resumed run keeps its validation history and best return (SB3's EvalCallback starts empty,
+    so it would overwrite ``evaluations.npz`` with the new evaluations only and take the first of them
+    as the best model). Evaluations after the checkpoint resumed from are dropped: they are redone."""
+    if not log.exists():
+        return
+    with np.load(log) as data:
+        keep = data["timesteps"] <= steps_done
+        callback.evaluations_timesteps = [int(t) for t in data["timesteps"][keep]]
+        callback.evaluations_results = [list(map(float, r)) for r in data["results"][keep]]
+        callback.evaluations_length = [list(map(int, n)) for n in data["ep_lengths"][keep]]
+    if callback.evaluations_results:
+        callback.best_mean_reward = max(float(np.mean(r)) for r in callback.evaluations_results)
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:

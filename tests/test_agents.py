@@ -8,6 +8,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -107,7 +108,7 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
             "--env",
             ENV,
             "--timesteps",
-            "96",
+            "128",
             "--n-envs",
             "1",
             "--no-progress",
@@ -122,7 +123,10 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
         ]
     )
     result = json.loads((run / "result.json").read_text())
-    assert result["resumed_from"] == 64 and result["timesteps"] >= 96
+    assert result["resumed_from"] == 64 and result["timesteps"] >= 128
+    # the validation log keeps the evaluation made before the interruption (SB3 alone would restart it)
+    with np.load(run / "eval" / "evaluations.npz") as log:
+        assert [int(t) for t in log["timesteps"]] == [64, 128]
 
     sac = tmp_path / "sac"
     train.main(
