@@ -1,13 +1,15 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
     python -m agents.evaluate RUN_DIRS... --baseline OPEN_LOOP_DIR --out DIR [--split test] [--episodes N]
-        [--workers 2] [--scheduler ADDRESS]
+        [--model final|best] [--workers 2] [--scheduler ADDRESS]
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
 their training seeds its samples. Each run plays one deterministic episode from each of the first
 ``--episodes`` start states of ``--split`` (by default the states of the baseline's points), with the
 observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun).
+``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
+return (model selection on the validation states, testing on the held-out test states).
 
 Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
 interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
@@ -53,6 +55,25 @@ def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
     return groups
 
 
+def model_files(run: Path, which: str) -> tuple[Path, Path]:
+    """The policy and its observation statistics: ``final`` (the end of training) or ``best`` (the
+    checkpoint at the evaluation with the highest mean validation return; checkpoints and evaluations
+    coincide when ``eval_freq`` is a multiple of ``checkpoint_freq``, as in the shipped hyperparameters)."""
+    if which == "final":
+        return run / "model.zip", run / "vecnormalize.pkl"
+    if which != "best":
+        raise ValueError(f"model must be 'final' or 'best', got {which!r}")
+    log = run / "eval" / "evaluations.npz"
+    if not log.exists():
+        raise SystemExit(f"{run}: no eval/evaluations.npz, so no best-validation checkpoint")
+    with np.load(log) as data:
+        steps = int(data["timesteps"][int(np.argmax(data["results"].mean(axis=1)))])
+    model = run / "checkpoints" / f"ckpt_{steps}_steps.zip"
+    if not model.exists():
+        raise SystemExit(f"{run}: the best validation return was at {steps} steps, but {model} is missing")
+    return model, run / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
+
+
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
@@ -66,10 +87,11 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
             return dict(old)
     run = Path(payload["run"])
     config = yaml.safe_load((run / "config.yml").read_text())
-    model = (PPO if config["algo"] == "ppo" else SAC).load(str(run / "model.zip"), device="cpu")
+    model_file, stats_file = model_files(run, payload.get("model", "final"))
+    model = (PPO if config["algo"] == "ppo" else SAC).load(str(model_file), device="cpu")
     normaliser = None
-    if (run / "vecnormalize.pkl").exists():
-        with open(run / "vecnormalize.pkl", "rb") as handle:
+    if stats_file.exists():
+        with open(stats_file, "rb") as handle:
             normaliser = pickle.load(handle)
         normaliser.training = False
 
@@ -275,6 +297,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, type=Path)
     parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
     parser.add_argument("--episodes", type=int, default=None, help="first N states (default: the baseline's)")
+    parser.add_argument(
+        "--model",
+        choices=("final", "best"),
+        default="final",
+        help="the policy at the end of training, or the checkpoint with the best validation return",
+    )
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
     return parser
@@ -288,6 +316,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
     groups = find_runs(args.runs)
+    if args.model == "best":
+        groups = {f"{name}, best validation": runs for name, runs in groups.items()}
     (args.out / "runs").mkdir(parents=True, exist_ok=True)
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
@@ -295,10 +325,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     payloads, owners = [], []
     for name, runs in groups.items():
         for run in runs:
-            label = f"{run.parent.name}_{run.name}".replace("/", "_")
+            label = f"{run.parent.name}_{run.name}".replace("/", "_") + (
+                "_best" if args.model == "best" else ""
+            )
+            model_file, _ = model_files(run, args.model)
             payloads.append(
                 {
                     "run": str(run),
+                    "model": args.model,
                     "split": split,
                     "indices": indices,
                     "path": str(args.out / "runs" / f"{label}.json"),
@@ -306,7 +340,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "run": str(run.resolve()),
                         "split": split,
                         "indices": indices,
-                        "model_mtime": (run / "model.zip").stat().st_mtime_ns,
+                        "model": str(model_file.resolve()),
+                        "model_mtime": model_file.stat().st_mtime_ns,
                     },
                 }
             )

@@ -162,6 +162,17 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     assert verdict["eta_minus_front"] == pytest.approx(verdict["eta"] - verdict["front_eta"])
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
+    # The best-validation checkpoint of each seed (with the normalisation saved alongside it)
+    best = evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--model", "best"])
+    assert any(r["name"] == "ppo (ppo), best validation" for r in best["rows"])
+    assert sorted(p.name for p in (out / "runs").glob("*_best.json")) == [
+        "ppo_seed0_best.json",
+        "ppo_seed1_best.json",
+    ]
+    with np.load(run / "eval" / "evaluations.npz") as log:
+        steps = int(log["timesteps"][np.argmax(log["results"].mean(axis=1))])
+    assert evaluate.model_files(run, "best")[0].name == f"ckpt_{steps}_steps.zip"
+
 
 def test_train_with_subprocess_envs(tmp_path: Path) -> None:
     """Two environments in a SubprocVecEnv (the default for n_envs = 2)."""
