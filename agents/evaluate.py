@@ -9,7 +9,9 @@ their training seeds its samples. Each run plays one deterministic episode from 
 ``--episodes`` start states of ``--split`` (by default the states of the baseline's points), with the
 observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun).
 ``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
-return (model selection on the validation states, testing on the held-out test states).
+return (model selection on the validation states, testing on the held-out test states). The baseline's
+stored returns are rescored with the reward of the policies' env (that of the first run's config), and the
+best constant field is chosen for that reward.
 
 Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
 interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
@@ -34,7 +36,7 @@ import numpy as np
 import yaml
 
 from agents.comparison import action_variation, front_points, position
-from agents.open_loop import plot_pareto, read_json, summarise_points, write_json
+from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
 
@@ -311,11 +313,18 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = build_parser().parse_args(argv)
     pareto = read_json(args.baseline / "pareto.json")
-    points = [read_json(p) for p in sorted((args.baseline / "points").glob("*.json"))]
+    groups = find_runs(args.runs)
+    # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
+    # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
+    config = yaml.safe_load((next(iter(groups.values()))[0] / "config.yml").read_text())
+    probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
+    reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
+    probe.close()
+    points = [rescore(read_json(p), reward) for p in sorted((args.baseline / "points").glob("*.json"))]
+    summary = summarise_points(points)
     split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
-    groups = find_runs(args.runs)
     if args.model == "best":
         groups = {f"{name}, best validation": runs for name, runs in groups.items()}
     (args.out / "runs").mkdir(parents=True, exist_ok=True)
@@ -352,7 +361,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(f"warning: start-state libraries differ between runs and baseline: {sorted(map(str, keys))}")
     rows = []
     by_label = {p["label"]: p for p in points}
-    best = read_json(args.baseline / "best_constant.json")
+    best = max(summary, key=lambda r: r["return"])  # for this reward
     baselines = [
         ("no field", by_label.get("off")),
         (f"best constant ({best['label']})", by_label.get(best["label"])),
@@ -366,10 +375,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     header = (
         f"Environment {records[0]['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
         "averages over the second half of each episode (energy in eta gammadot per unit strain); intervals "
-        "are 95% Student-t over training seeds (policies) or start states (constant fields).\n\n"
+        "are 95% Student-t over training seeds (policies) or start states (constant fields). Returns for "
+        f"the reward of the policies' env: target eta_r {reward.target_viscosity:g}, energy weight "
+        f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    summary = summarise_points(points)
     policy_rows = rows[len(rows) - len(groups) :]
     items = verdicts(
         policy_rows,

@@ -14,6 +14,7 @@ import yaml
 
 import dipenv
 from agents import evaluate, open_loop, train
+from agents.rollout import make_env
 from agents.tasks import parse_seeds, run_tasks
 
 ENV = "dipenv/FieldMagnitudeTiny-v0"
@@ -79,13 +80,15 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     rescored = open_loop.main(
         ["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1", *kwargs]
     )
-    assert (baseline / "points" / "Mn1.json").stat().st_mtime_ns == stamp
-    trace = json.loads((baseline / "points" / "Mn1.json").read_text())["episodes"][0]["trace"]
+    stored = json.loads((baseline / "points" / "Mn1.json").read_text())
+    assert stored["identity"] == json.loads(json.dumps(stored["identity"]))  # same point, rewritten:
+    trace = stored["episodes"][0]["trace"]  # its stored rewards are now those of the new reward
     by_hand = sum(
         -abs(eta - 3.0) - 0.5 * e for eta, e in zip(trace["eta_r"], trace["field_energy"], strict=True)
     )
     assert next(r for r in rescored if r["label"] == "Mn1")["return"] == pytest.approx(by_hand, rel=1e-12)
     assert by_hand != pytest.approx(next(r for r in rows if r["label"] == "Mn1")["return"], rel=1e-3)
+    assert stored["episodes"][0]["return"] == pytest.approx(by_hand, rel=1e-12)
 
     ppo = tmp_path / "ppo"
     common = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress"]
@@ -152,6 +155,16 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     evaluate.main([str(ppo), str(sac), "--baseline", str(baseline), "--out", str(out)])
     printed = capsys.readouterr().out
     assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
+    # The baseline was last scored with target 3.0; the table rescores it with the policies' (default) reward.
+    default_target = make_env(ENV).unwrapped.reward_function.target_viscosity
+    off = json.loads((baseline / "points" / "off.json").read_text())["episodes"][0]["trace"]
+    off_return = sum(-abs(eta - default_target) for eta in off["eta_r"])
+    no_field = next(
+        r
+        for r in evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out)])["rows"]
+        if r["name"] == "no field"
+    )
+    assert default_target != 3.0 and no_field["return"]["mean"] == pytest.approx(off_return, rel=1e-12)
     for name in ("table.md", "results.json", "traces.png", "pareto.png", "verdict.md", "learning.png"):
         assert (out / name).exists(), name
     results = json.loads((out / "results.json").read_text())
