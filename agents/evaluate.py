@@ -1,7 +1,7 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
     python -m agents.evaluate RUN_DIRS... --baseline OPEN_LOOP_DIR --out DIR [--split test] [--episodes N]
-        [--model final|best] [--workers 2] [--scheduler ADDRESS]
+        [--model final|best] [--stochastic] [--workers 2] [--scheduler ADDRESS]
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
@@ -11,7 +11,9 @@ observation normalisation it was trained with; per-run results go to ``DIR/runs/
 ``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
 return (model selection on the validation states, testing on the held-out test states). The baseline's
 stored returns are rescored with the reward of the policies' env (that of the first run's config), and the
-best constant field is chosen for that reward.
+best constant field is chosen for that reward. ``--stochastic`` samples the policy's actions (torch seeded
+with the start state's index) instead of playing its mean: a PPO policy early in training is a wide
+Gaussian whose mean alone can do much worse than the policy it was trained as.
 
 Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
 interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
@@ -99,12 +101,14 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
 
     def policy(obs: np.ndarray) -> np.ndarray:
         x = normaliser.normalize_obs(obs) if normaliser is not None else obs
-        action, _ = model.predict(x, deterministic=True)
+        action, _ = model.predict(x, deterministic=deterministic)
         return np.asarray(action)
 
+    deterministic = not payload.get("stochastic", False)
     env = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     episodes = []
     for index in payload["indices"]:
+        torch.manual_seed(index)  # the stochastic policy's samples: reproducible per start state
         trace = run_episode(env, policy, payload["split"], index)
         episodes.append({**trace.summary(), "trace": trace.to_dict()})
     key = env.unwrapped.library().key  # type: ignore[attr-defined]
@@ -305,6 +309,11 @@ def build_parser() -> argparse.ArgumentParser:
         default="final",
         help="the policy at the end of training, or the checkpoint with the best validation return",
     )
+    parser.add_argument(
+        "--stochastic",
+        action="store_true",
+        help="sample actions from the policy (seeded per start state) instead of taking its mean",
+    )
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
     return parser
@@ -325,8 +334,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
-    if args.model == "best":
-        groups = {f"{name}, best validation": runs for name, runs in groups.items()}
+    suffix = (", best validation" if args.model == "best" else "") + (
+        ", stochastic" if args.stochastic else ""
+    )
+    groups = {f"{name}{suffix}": runs for name, runs in groups.items()}
     (args.out / "runs").mkdir(parents=True, exist_ok=True)
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
@@ -334,14 +345,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     payloads, owners = [], []
     for name, runs in groups.items():
         for run in runs:
-            label = f"{run.parent.name}_{run.name}".replace("/", "_") + (
-                "_best" if args.model == "best" else ""
-            )
+            label = f"{run.parent.name}_{run.name}".replace("/", "_")
+            label += ("_best" if args.model == "best" else "") + ("_stochastic" if args.stochastic else "")
             model_file, _ = model_files(run, args.model)
             payloads.append(
                 {
                     "run": str(run),
                     "model": args.model,
+                    "stochastic": args.stochastic,
                     "split": split,
                     "indices": indices,
                     "path": str(args.out / "runs" / f"{label}.json"),
@@ -351,6 +362,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "indices": indices,
                         "model": str(model_file.resolve()),
                         "model_mtime": model_file.stat().st_mtime_ns,
+                        **({"stochastic": True} if args.stochastic else {}),
                     },
                 }
             )

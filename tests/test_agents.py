@@ -186,6 +186,15 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
         steps = int(log["timesteps"][np.argmax(log["results"].mean(axis=1))])
     assert evaluate.model_files(run, "best")[0].name == f"ckpt_{steps}_steps.zip"
 
+    # Sampled actions: reproducible (torch seeded per start state), different from the mean's
+    sampled = [tmp_path / "s1", tmp_path / "s2"]
+    for folder in sampled:
+        evaluate.main([str(run), "--baseline", str(baseline), "--out", str(folder), "--stochastic"])
+    traces = [json.loads((f / "runs" / "ppo_seed0_stochastic.json").read_text()) for f in sampled]
+    assert traces[0]["episodes"][0]["trace"]["action"] == traces[1]["episodes"][0]["trace"]["action"]
+    mean = json.loads((out / "runs" / "ppo_seed0.json").read_text())["episodes"][0]["trace"]["action"]
+    assert traces[0]["episodes"][0]["trace"]["action"] != mean
+
 
 def test_train_with_subprocess_envs(tmp_path: Path) -> None:
     """Two environments in a SubprocVecEnv (the default for n_envs = 2)."""
