@@ -22,7 +22,8 @@ the baselines (no field and the best constant field for the reward) the same ove
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
 fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
 constant-field front and its action variation (:mod:`agents.comparison`). ``learning.png``: each run's
-validation return (its ``EvalCallback`` log) against training steps, with the constant fields' returns.
+return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
+and in its training episodes with sampled actions (TensorBoard), with the constant fields' returns.
 """
 
 from __future__ import annotations
@@ -263,8 +264,24 @@ def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
     plt.close(fig)
 
 
+def training_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
+    """SB3's ``rollout/ep_rew_mean`` (mean return of the last 100 training episodes, sampled actions)
+    against environment steps, from the run's TensorBoard logs (all of them: a resumed run has several)."""
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+
+    points: dict[int, float] = {}
+    for events in sorted(run.glob("tb/*/events.out.tfevents.*")):
+        accumulator = EventAccumulator(str(events), size_guidance={"scalars": 0})
+        accumulator.Reload()
+        if "rollout/ep_rew_mean" in accumulator.Tags()["scalars"]:
+            points.update({e.step: e.value for e in accumulator.Scalars("rollout/ep_rew_mean")})
+    steps = np.array(sorted(points), dtype=float)
+    return steps, np.array([points[int(s)] for s in steps])
+
+
 def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, float]], path: Path) -> None:
-    """Validation return (mean over the validation states) against environment steps, one line per run."""
+    """Return against environment steps, per run: validation episodes with the policy's mean action
+    (markers; the EvalCallback's log) and training episodes with sampled actions (thin line)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -273,19 +290,22 @@ def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, floa
     fig, ax = plt.subplots(figsize=(6.5, 4))
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for k, (name, runs) in enumerate(groups.items()):
+        colour = colours[k % len(colours)]
         for j, run in enumerate(runs):
             log = run / "eval" / "evaluations.npz"
-            if not log.exists():
-                continue
-            with np.load(log) as data:
-                steps, returns = data["timesteps"], data["results"].mean(axis=1)
-            ax.plot(
-                steps, returns, "o-", ms=3, color=colours[k % len(colours)], label=name if j == 0 else None
-            )
+            if log.exists():
+                with np.load(log) as data:
+                    steps, returns = data["timesteps"], data["results"].mean(axis=1)
+                label = f"{name}: validation, mean action" if j == 0 else None
+                ax.plot(steps, returns, "o-", ms=3, lw=1, color=colour, label=label)
+            steps, returns = training_returns(run)
+            if steps.size:
+                label = f"{name}: training, sampled actions" if j == 0 else None
+                ax.plot(steps, returns, "-", lw=0.8, alpha=0.5, color=colour, label=label)
     for (name, value), style in zip(baselines, ("--", ":", "-."), strict=False):
         ax.axhline(value, color="0.3", ls=style, lw=1, label=f"{name} (test states)")
     ax.set_xlabel("environment steps")
-    ax.set_ylabel("episode return (validation states)")
+    ax.set_ylabel("episode return")
     ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -334,6 +354,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
+    trained = dict(groups)  # by the training runs' names, for the learning curves
     suffix = (", best validation" if args.model == "best" else "") + (
         ", stochastic" if args.stochastic else ""
     )
@@ -434,7 +455,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         ]
     plot_traces(curves, args.out / "traces.png")
     plot_learning(
-        groups,
+        trained,
         [(r["name"], r["return"]["mean"]) for r in rows[: len(rows) - len(groups)]],
         args.out / "learning.png",
     )

@@ -150,6 +150,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     probe.close()
 
     quiet = {**env_kwargs, "progress": False}
+    checkpoints = out / "checkpoints"
+    latest = _latest_checkpoint(checkpoints)
     vec_cls = SubprocVecEnv if n_envs > 1 and can_start_subprocesses() else DummyVecEnv
     venv = make_vec_env(
         functools.partial(make_env, env_id, quiet),
@@ -157,6 +159,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         seed=seed,
         vec_env_cls=vec_cls,
         monitor_dir=str(out / "monitor"),
+        monitor_kwargs={"override_existing": latest is None},  # a resumed run appends its episodes
     )
     eval_venv = DummyVecEnv(
         [
@@ -166,8 +169,6 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         ]
     )
     gamma = float(hp.get("gamma", 0.99))
-    checkpoints = out / "checkpoints"
-    latest = _latest_checkpoint(checkpoints)
     algo_cls: Any = PPO if algo == "ppo" else SAC
     if latest is not None:
         steps_done, model_path = latest

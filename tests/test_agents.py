@@ -106,6 +106,8 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     # Finished: a rerun returns at once. Longer: it resumes from the last checkpoint.
     train.main([*common, "--algo", "ppo", "--seed", "0", "--out", str(run), "--hyperparams", *SHORT])
     (run / "result.json").unlink()
+    monitor = next((run / "monitor").glob("*.monitor.csv"))
+    episodes_before = monitor.read_text().splitlines()
     train.main(
         [
             "--env",
@@ -130,6 +132,9 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     # the validation log keeps the evaluation made before the interruption (SB3 alone would restart it)
     with np.load(run / "eval" / "evaluations.npz") as log:
         assert [int(t) for t in log["timesteps"]] == [64, 128]
+    episodes_after = monitor.read_text().splitlines()  # appended to, not restarted
+    assert episodes_after[: len(episodes_before)] == episodes_before
+    assert len(episodes_after) > len(episodes_before)
 
     sac = tmp_path / "sac"
     train.main(
