@@ -72,6 +72,8 @@ def position(
         verdict = "above the constant-field front (a constant field does better)"
     else:
         verdict = "on the constant-field front (within the 95% interval)"
+    if math.isnan(eta_low) or math.isnan(eta_high):
+        verdict += "; one sample, no interval"
     return {
         "front_eta": reference,
         "eta_minus_front": eta - reference,
