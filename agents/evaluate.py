@@ -1,7 +1,7 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
     python -m agents.evaluate RUN_DIRS... --baseline OPEN_LOOP_DIR --out DIR [--split test] [--episodes N]
-        [--model final|best] [--stochastic] [--workers 2] [--scheduler ADDRESS]
+        [--model final|best] [--actions mean|sampled|both] [--workers 2] [--scheduler ADDRESS]
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
@@ -11,9 +11,10 @@ observation normalisation it was trained with; per-run results go to ``DIR/runs/
 ``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
 return (model selection on the validation states, testing on the held-out test states). The baseline's
 stored returns are rescored with the reward of the policies' env (that of the first run's config), and the
-best constant field is chosen for that reward. ``--stochastic`` samples the policy's actions (torch seeded
-with the start state's index) instead of playing its mean: a PPO policy early in training is a wide
-Gaussian whose mean alone can do much worse than the policy it was trained as.
+best constant field is chosen for that reward. ``--actions sampled`` samples
+the policy's actions (torch seeded with the start state's index) instead of playing its mean (``both``:
+each as its own row): a PPO policy early in training is a wide Gaussian whose mean alone can do much
+worse than the policy it was trained as.
 
 Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
 interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
@@ -330,9 +331,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="the policy at the end of training, or the checkpoint with the best validation return",
     )
     parser.add_argument(
-        "--stochastic",
-        action="store_true",
-        help="sample actions from the policy (seeded per start state) instead of taking its mean",
+        "--actions",
+        choices=("mean", "sampled", "both"),
+        default="mean",
+        help="play each policy's mean action, its sampled actions (seeded per start state), or both",
     )
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--scheduler", default=None)
@@ -354,26 +356,29 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
-    trained = dict(groups)  # by the training runs' names, for the learning curves
-    suffix = (", best validation" if args.model == "best" else "") + (
-        ", stochastic" if args.stochastic else ""
-    )
-    groups = {f"{name}{suffix}": runs for name, runs in groups.items()}
+    # One policy per training group and way of acting: its mean action and/or its sampled actions.
+    sampling = {"mean": [False], "sampled": [True], "both": [False, True]}[args.actions]
+    best_suffix = ", best validation" if args.model == "best" else ""
+    policies = {
+        f"{name}{best_suffix}{', sampled' if sampled else ''}": (runs, sampled)
+        for name, runs in groups.items()
+        for sampled in sampling
+    }
     (args.out / "runs").mkdir(parents=True, exist_ok=True)
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
     )
     payloads, owners = [], []
-    for name, runs in groups.items():
+    for name, (runs, sampled) in policies.items():
         for run in runs:
             label = f"{run.parent.name}_{run.name}".replace("/", "_")
-            label += ("_best" if args.model == "best" else "") + ("_stochastic" if args.stochastic else "")
+            label += ("_best" if args.model == "best" else "") + ("_stochastic" if sampled else "")
             model_file, _ = model_files(run, args.model)
             payloads.append(
                 {
                     "run": str(run),
                     "model": args.model,
-                    "stochastic": args.stochastic,
+                    "stochastic": sampled,
                     "split": split,
                     "indices": indices,
                     "path": str(args.out / "runs" / f"{label}.json"),
@@ -383,7 +388,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "indices": indices,
                         "model": str(model_file.resolve()),
                         "model_mtime": model_file.stat().st_mtime_ns,
-                        **({"stochastic": True} if args.stochastic else {}),
+                        **({"stochastic": True} if sampled else {}),
                     },
                 }
             )
@@ -402,7 +407,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for name, record in baselines:
         if record is not None:
             rows.append(aggregate_baseline(name, record, indices))
-    for name in groups:
+    for name in policies:
         rows.append(aggregate_policy(name, [r for r, o in zip(records, owners, strict=True) if o == name]))
     table = format_table(rows)
     header = (
@@ -413,11 +418,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    policy_rows = rows[len(rows) - len(groups) :]
+    policy_rows = rows[len(rows) - len(policies) :]
     items = verdicts(
         policy_rows,
         front_points(summary),
-        [[r for r, o in zip(records, owners, strict=True) if o == name] for name in groups],
+        [[r for r, o in zip(records, owners, strict=True) if o == name] for name in policies],
     )
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
@@ -428,7 +433,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     write_json(
         args.out / "results.json", {"split": split, "indices": indices, "rows": rows, "verdicts": items}
     )
-    policies = [
+    markers = [
         {
             "name": r["name"],
             "eta": r["eta"]["mean"],
@@ -438,25 +443,25 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         }
         for r in policy_rows
     ]
-    for p in policies:
+    for p in markers:
         for k in ("eta_ci_low", "eta_ci_high"):
             if math.isnan(p[k]):
                 p[k] = p["eta"]
-    plot_pareto(summary, args.out / "pareto.png", policies)
+    plot_pareto(summary, args.out / "pareto.png", markers)
     first = indices[0]
     curves = []
     for name, record in baselines:
         if record is not None:
             curves += [(name, e["trace"]) for e in record["episodes"] if e["index"] == first]
-    for name in groups:
+    for name in policies:
         record = next(r for r, o in zip(records, owners, strict=True) if o == name)
         curves += [
             (f"{name} seed {record['seed']}", e["trace"]) for e in record["episodes"] if e["index"] == first
         ]
     plot_traces(curves, args.out / "traces.png")
     plot_learning(
-        trained,
-        [(r["name"], r["return"]["mean"]) for r in rows[: len(rows) - len(groups)]],
+        groups,
+        [(r["name"], r["return"]["mean"]) for r in rows[: len(rows) - len(policies)]],
         args.out / "learning.png",
     )
     print(header + table + "\n\n" + verdict)

@@ -193,8 +193,11 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
 
     # Sampled actions: reproducible (torch seeded per start state), different from the mean's
     sampled = [tmp_path / "s1", tmp_path / "s2"]
-    for folder in sampled:
-        evaluate.main([str(run), "--baseline", str(baseline), "--out", str(folder), "--stochastic"])
+    for folder, actions in zip(sampled, ("sampled", "both"), strict=True):
+        result = evaluate.main(
+            [str(run), "--baseline", str(baseline), "--out", str(folder), "--actions", actions]
+        )
+    assert [r["name"] for r in result["rows"][-2:]] == ["ppo (ppo)", "ppo (ppo), sampled"]
     traces = [json.loads((f / "runs" / "ppo_seed0_stochastic.json").read_text()) for f in sampled]
     assert traces[0]["episodes"][0]["trace"]["action"] == traces[1]["episodes"][0]["trace"]["action"]
     mean = json.loads((out / "runs" / "ppo_seed0.json").read_text())["episodes"][0]["trace"]["action"]
