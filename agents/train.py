@@ -16,7 +16,9 @@ A run folder holds ``config.yml`` (env id and arguments, algorithm, seed, resolv
 versions), ``command.txt``, ``model.zip``, ``vecnormalize.pkl``, ``result.json``, ``checkpoints/``,
 ``eval/`` (``evaluations.npz``, ``best_model.zip``), ``monitor/`` and ``tb/``. Rerunning the same command
 skips finished runs and resumes interrupted ones from their last checkpoint (not bit-identical to an
-uninterrupted run: the environments restart their episodes). With ``--seeds`` each seed is a task in
+uninterrupted run: the environments restart their episodes); the validation log and the best model carry
+over, and the Monitor files are appended to (episodes finished after the last checkpoint stay in them).
+With ``--seeds`` each seed is a task in
 ``OUT/seed<k>`` on the local pool (``--workers``) or a Dask cluster (``--scheduler``).
 """
 
