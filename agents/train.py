@@ -18,8 +18,8 @@ versions), ``command.txt``, ``model.zip``, ``vecnormalize.pkl``, ``result.json``
 skips finished runs and resumes interrupted ones from their last checkpoint (not bit-identical to an
 uninterrupted run: the environments restart their episodes); the validation log and the best model carry
 over, and the Monitor files are appended to (episodes finished after the last checkpoint stay in them).
-With ``--seeds`` each seed is a task in
-``OUT/seed<k>`` on the local pool (``--workers``) or a Dask cluster (``--scheduler``).
+With ``--seeds`` each seed is a task in ``OUT/seed<k>`` on the local pool (``--workers``) or a Dask
+cluster (``--scheduler``).
 """
 
 from __future__ import annotations
