@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.comparison import action_variation, front_points, position
+from agents.comparison import action_variation, front_eta, front_points, position
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
@@ -93,7 +93,7 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
             return dict(old)
     run = Path(payload["run"])
     config = yaml.safe_load((run / "config.yml").read_text())
-    model_file, stats_file = model_files(run, payload.get("model", "final"))
+    model_file, stats_file = Path(payload["model_file"]), Path(payload["stats_file"])
     model = (PPO if config["algo"] == "ppo" else SAC).load(str(model_file), device="cpu")
     normaliser = None
     if stats_file.exists():
@@ -206,7 +206,7 @@ def verdicts(
         eta, energy = row["eta"], row["energy"]
         where = position(front, energy["mean"], eta["mean"], eta["ci_low"], eta["ci_high"])
         gaps = [
-            e - position(front, en, e, math.nan, math.nan)["front_eta"]
+            e - front_eta(front, en)
             for e, en in zip(row["per_seed"]["eta"], row["per_seed"]["energy"], strict=True)
             if math.isfinite(e) and math.isfinite(en)
         ]
@@ -373,11 +373,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         for run in runs:
             label = f"{run.parent.name}_{run.name}".replace("/", "_")
             label += ("_best" if args.model == "best" else "") + ("_stochastic" if sampled else "")
-            model_file, _ = model_files(run, args.model)
+            model_file, stats_file = model_files(run, args.model)
             payloads.append(
                 {
                     "run": str(run),
-                    "model": args.model,
+                    "model_file": str(model_file),
+                    "stats_file": str(stats_file),
                     "stochastic": sampled,
                     "split": split,
                     "indices": indices,
@@ -397,18 +398,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     keys = {r["library_key"] for r in records} | {pareto.get("library_key")}
     if len(keys) > 1:
         print(f"warning: start-state libraries differ between runs and baseline: {sorted(map(str, keys))}")
-    rows = []
     by_label = {p["label"]: p for p in points}
     best = max(summary, key=lambda r: r["return"])  # for this reward
     baselines = [
         ("no field", by_label.get("off")),
         (f"best constant ({best['label']})", by_label.get(best["label"])),
     ]
-    for name, record in baselines:
-        if record is not None:
-            rows.append(aggregate_baseline(name, record, indices))
-    for name in policies:
-        rows.append(aggregate_policy(name, [r for r, o in zip(records, owners, strict=True) if o == name]))
+    baseline_rows = [
+        aggregate_baseline(name, record, indices) for name, record in baselines if record is not None
+    ]
+    played = {name: [r for r, o in zip(records, owners, strict=True) if o == name] for name in policies}
+    policy_rows = [aggregate_policy(name, own) for name, own in played.items()]
+    rows = baseline_rows + policy_rows
     table = format_table(rows)
     header = (
         f"Environment {records[0]['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
@@ -418,12 +419,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    policy_rows = rows[len(rows) - len(policies) :]
-    items = verdicts(
-        policy_rows,
-        front_points(summary),
-        [[r for r, o in zip(records, owners, strict=True) if o == name] for name in policies],
-    )
+    items = verdicts(policy_rows, front_points(summary), list(played.values()))
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
         "agents.comparison); action statistics over the second half of the episodes.\n\n"
@@ -453,15 +449,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for name, record in baselines:
         if record is not None:
             curves += [(name, e["trace"]) for e in record["episodes"] if e["index"] == first]
-    for name in policies:
-        record = next(r for r, o in zip(records, owners, strict=True) if o == name)
+    for name, own in played.items():
         curves += [
-            (f"{name} seed {record['seed']}", e["trace"]) for e in record["episodes"] if e["index"] == first
+            (f"{name} seed {own[0]['seed']}", e["trace"]) for e in own[0]["episodes"] if e["index"] == first
         ]
     plot_traces(curves, args.out / "traces.png")
     plot_learning(
         groups,
-        [(r["name"], r["return"]["mean"]) for r in rows[: len(rows) - len(policies)]],
+        [(r["name"], r["return"]["mean"]) for r in baseline_rows],
         args.out / "learning.png",
     )
     print(header + table + "\n\n" + verdict)

@@ -84,16 +84,22 @@ def read_json(path: Path) -> Any:
     return floats(json.loads(path.read_text()))
 
 
+def constant_action(unwrapped: Any, mason: float, direction: str | None) -> list[float]:
+    """The action that holds ``mason`` (inf: off) in ``unwrapped``'s mapping, with the named direction
+    (a key of :data:`DIRECTIONS`) appended for the vector env (``None`` for the magnitude env)."""
+    action = [unwrapped.mapping.action_for(mason)]
+    if direction is not None:
+        from dipenv.actions import action_from_direction
+
+        action += list(action_from_direction(DIRECTIONS[direction]))
+    return action
+
+
 def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     """One constant field over the start states (a task); returns and writes the point's record."""
     env = make_env(payload["env_id"], payload["env_kwargs"])
     unwrapped: Any = env.unwrapped
-    mapping = unwrapped.mapping
-    action = [mapping.action_for(payload["mason_number"])]
-    if payload["direction"] is not None:
-        from dipenv.actions import action_from_direction
-
-        action += list(action_from_direction(DIRECTIONS[payload["direction"]]))
+    action = constant_action(unwrapped, payload["mason_number"], payload["direction"])
     key = unwrapped.library().key
     settings = unwrapped.settings()
     # The physics (and the failure penalty, which a stored failed step keeps): the returns are rescored

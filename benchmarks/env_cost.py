@@ -16,22 +16,12 @@ import argparse
 import math
 import os
 import time
+from typing import Any
 
 import numpy as np
 
+from agents.open_loop import constant_action
 from agents.rollout import make_env
-from dipenv.actions import action_from_direction
-
-
-def action_for(env: object, mason: float) -> np.ndarray:
-    """The strength action that commands ``mason`` (inf: off) in this env's mapping."""
-    unwrapped = env.unwrapped  # type: ignore[attr-defined]
-    shape = unwrapped.action_space.shape
-    action = np.zeros(shape, dtype=np.float32)
-    action[0] = unwrapped.mapping.action_for(mason)
-    if shape[0] == 3:  # vector env: field along y, the magnitude env's direction
-        action[1:] = action_from_direction((0.0, 1.0, 0.0))
-    return action
 
 
 def measure(env_id: str, mason: float, states: int, skip: int, intervals: int) -> dict[str, float]:
@@ -41,7 +31,10 @@ def measure(env_id: str, mason: float, states: int, skip: int, intervals: int) -
     iterations, sweeps = [], []
     for index in range(states):
         env.reset(seed=0, options={"split": "train", "index": index})
-        action = action_for(env, mason)
+        unwrapped: Any = env.unwrapped
+        # the vector env's field along y, the magnitude env's direction
+        direction = "y" if unwrapped.vector_field else None
+        action = np.array(constant_action(unwrapped, mason, direction), dtype=np.float32)
         for _ in range(skip):
             env.step(action)
         for _ in range(intervals):
