@@ -34,7 +34,7 @@ import math
 import pickle
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 import yaml
@@ -43,6 +43,12 @@ from agents.comparison import action_variation, front_eta, front_points, positio
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
+
+
+def usage_error(message: str) -> NoReturn:
+    """Exit with status 2 (argparse's code for bad arguments) and the message on stderr."""
+    print(f"python -m agents.evaluate: error: {message}", file=sys.stderr)
+    raise SystemExit(2)
 
 
 def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
@@ -54,7 +60,7 @@ def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
         else:
             key, runs = path, sorted(p.parent for p in path.glob("*/model.zip"))
         if not runs:
-            raise SystemExit(f"{path}: no model.zip in it or in its subfolders")
+            usage_error(f"RUN_DIRS: {path}: no model.zip in it or in its subfolders")
         config = yaml.safe_load((runs[0] / "config.yml").read_text())
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
@@ -71,12 +77,14 @@ def model_files(run: Path, which: str) -> tuple[Path, Path]:
         raise ValueError(f"model must be 'final' or 'best', got {which!r}")
     log = run / "eval" / "evaluations.npz"
     if not log.exists():
-        raise SystemExit(f"{run}: no eval/evaluations.npz, so no best-validation checkpoint")
+        usage_error(f"--model best: {run}: no eval/evaluations.npz, so no best-validation checkpoint")
     with np.load(log) as data:
         steps = int(data["timesteps"][int(np.argmax(data["results"].mean(axis=1)))])
     model = run / "checkpoints" / f"ckpt_{steps}_steps.zip"
     if not model.exists():
-        raise SystemExit(f"{run}: the best validation return was at {steps} steps, but {model} is missing")
+        usage_error(
+            f"--model best: {run}: the best validation return was at {steps} steps, but {model} is missing"
+        )
     return model, run / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
 
 
@@ -348,6 +356,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
     # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
     config = yaml.safe_load((next(iter(groups.values()))[0] / "config.yml").read_text())
+    for runs in groups.values():
+        for run in runs:
+            env_id = yaml.safe_load((run / "config.yml").read_text())["env_id"]
+            if env_id != pareto["env_id"]:
+                usage_error(
+                    f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}"
+                )
     probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
     probe.close()

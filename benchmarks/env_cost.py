@@ -67,7 +67,17 @@ def main() -> None:
     parser.add_argument("--states", type=int, default=2)
     parser.add_argument("--skip", type=int, default=2)
     args = parser.parse_args()
-    masons = [math.inf if m == "off" else float(m) for m in args.mason.split(",")]
+    for name in ("intervals", "states"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name} must be >= 1, got {getattr(args, name)}")
+    if args.skip < 0:
+        parser.error(f"--skip must be >= 0, got {args.skip}")
+    try:
+        masons = [math.inf if m.strip() == "off" else float(m) for m in args.mason.split(",")]
+    except ValueError:
+        parser.error(f"--mason takes 'off' or numbers separated by commas, got {args.mason!r}")
+    if any(not (m > 0) for m in masons):
+        parser.error(f"--mason values must be > 0 (or 'off'), got {args.mason!r}")
     env = make_env(args.env, {"progress": True})
     env.unwrapped.library().ensure(["train"])  # type: ignore[attr-defined]
     env.close()

@@ -180,6 +180,18 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     assert verdict["eta_minus_front"] == pytest.approx(verdict["eta"] - verdict["front_eta"])
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
+    # Bad inputs exit 2 naming the argument: no run in the folder, a baseline of another env
+    with pytest.raises(SystemExit) as missing:
+        evaluate.main([str(tmp_path / "nowhere"), "--baseline", str(baseline), "--out", str(out)])
+    assert missing.value.code == 2 and "RUN_DIRS" in capsys.readouterr().err
+    other = tmp_path / "other_baseline"
+    shutil.copytree(baseline, other)
+    pareto = json.loads((other / "pareto.json").read_text())
+    (other / "pareto.json").write_text(json.dumps({**pareto, "env_id": "dipenv/FieldVectorTiny-v0"}))
+    with pytest.raises(SystemExit) as mismatch:
+        evaluate.main([str(ppo), "--baseline", str(other), "--out", str(out)])
+    assert mismatch.value.code == 2 and "FieldVectorTiny-v0" in capsys.readouterr().err
+
     # The best-validation checkpoint of each seed (with the normalisation saved alongside it)
     best = evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--model", "best"])
     assert any(r["name"] == "ppo (ppo), best validation" for r in best["rows"])
