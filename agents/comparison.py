@@ -19,6 +19,12 @@ below ``front_eta``, "above" if its lower end is above, otherwise "on the front"
 (second half of each episode) tells whether a policy is more than a constant: the standard deviation of its
 action (in the action box, [-1, 1]), the share of intervals with the field off, and the 10th-90th
 percentile range of the Mason numbers it used.
+
+The return (the reward the policy was trained for) is compared with the best constant field's on the
+same start states: per training seed, the policy's mean return minus the constant's mean return over
+those states (a paired comparison: the states' spread, common to both, drops out), then the mean and
+95% interval over seeds. "higher return" if the interval's lower end is above 0, "lower" if its upper
+end is below, otherwise "same return within the 95% interval".
 """
 
 from __future__ import annotations
@@ -28,6 +34,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+
+from agents.rollout import confidence_interval
 
 
 def front_points(rows: Sequence[dict[str, Any]]) -> list[tuple[float, float]]:
@@ -104,4 +112,29 @@ def action_variation(episodes: Sequence[dict[str, Any]]) -> dict[str, float]:
         "off_share": float(np.mean(off)),
         "mason_p10": p10,
         "mason_p90": p90,
+    }
+
+
+def return_gap(per_seed_returns: Sequence[float], reference: float) -> dict[str, Any]:
+    """Policy return minus a reference return on the same states, over seeds (module docstring)."""
+    if not math.isfinite(reference):
+        raise ValueError(f"reference must be a finite return, got {reference}")
+    gaps = [r - reference for r in per_seed_returns if math.isfinite(r)]
+    mean, low, high = confidence_interval(gaps)
+    if not gaps:
+        verdict = "no finite return"
+    elif math.isnan(low):
+        verdict = ("higher" if mean > 0 else "lower") + " return; one sample, no interval"
+    elif low > 0:
+        verdict = "higher return"
+    elif high < 0:
+        verdict = "lower return"
+    else:
+        verdict = "same return within the 95% interval"
+    return {
+        "return_gap": mean,
+        "return_gap_low": low,
+        "return_gap_high": high,
+        "seeds_above": sum(g > 0 for g in gaps),
+        "return_verdict": verdict,
     }

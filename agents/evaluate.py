@@ -22,7 +22,8 @@ over the second half of each episode, the field energy ``<1/Mn>`` over that half
 the baselines (no field and the best constant field for the reward) the same over start states. Plots:
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
 fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
-constant-field front and its action variation (:mod:`agents.comparison`). ``learning.png``: each run's
+constant-field front, its return against the best constant field's (paired per seed) and its action
+variation (:mod:`agents.comparison`). ``learning.png``: each run's
 return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
 and in its training episodes with sampled actions (TensorBoard), with the constant fields' returns.
 """
@@ -39,7 +40,7 @@ from typing import Any, NoReturn
 import numpy as np
 import yaml
 
-from agents.comparison import action_variation, front_eta, front_points, position
+from agents.comparison import action_variation, front_eta, front_points, position, return_gap
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
@@ -206,9 +207,13 @@ def format_table(rows: list[dict[str, Any]]) -> str:
 
 
 def verdicts(
-    rows: list[dict[str, Any]], front: list[tuple[float, float]], records: list[list[dict[str, Any]]]
+    rows: list[dict[str, Any]],
+    front: list[tuple[float, float]],
+    records: list[list[dict[str, Any]]],
+    best_return: float,
 ) -> list[dict[str, Any]]:
-    """Per policy row (with its runs' records): position against the front, per-seed gaps, variation."""
+    """Per policy row (with its runs' records): position against the front, per-seed gaps, return
+    against the best constant field's ``best_return`` on the same states, variation."""
     out = []
     for row, runs in zip(rows, records, strict=True):
         eta, energy = row["eta"], row["energy"]
@@ -226,6 +231,7 @@ def verdicts(
                 **where,
                 "seeds_below_front": sum(g < 0 for g in gaps),
                 "seeds": len(gaps),
+                **return_gap(row["per_seed"]["return"], best_return),
                 **action_variation([e for r in runs for e in r["episodes"]]),
             }
         )
@@ -236,15 +242,19 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
     lines = [
         "| policy | field energy | eta_r | front eta_r at that energy | eta_r - front "
         "| front energy for that eta_r | seeds below the front | action std (2nd half) | field off "
-        "| Mn used (10-90%) | verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Mn used (10-90%) | verdict | return - best constant [95% CI] | seeds above it | return verdict |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for v in items:
+        gap = f"{v['return_gap']:+.2f}"
+        if not math.isnan(v["return_gap_low"]):
+            gap += f" [{v['return_gap_low']:+.2f}, {v['return_gap_high']:+.2f}]"
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
             f"{v['seeds_below_front']}/{v['seeds']} | {v['action_std']:.3f} | {100 * v['off_share']:.0f}% | "
-            f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} |"
+            f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} | {gap} | "
+            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} |"
         )
     return "\n".join(lines)
 
@@ -434,11 +444,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    items = verdicts(policy_rows, front_points(summary), list(played.values()))
+    best_row = next(r for r in baseline_rows if r["name"].startswith("best constant"))
+    items = verdicts(policy_rows, front_points(summary), list(played.values()), best_row["return"]["mean"])
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
-        "agents.comparison); action statistics over the second half of the episodes.\n\n"
-        + format_verdicts(items)
+        "agents.comparison); action statistics over the second half of the episodes; the return against "
+        f"the {best_row['name']}'s on the same states, paired per seed.\n\n" + format_verdicts(items)
     )
     (args.out / "verdict.md").write_text(verdict + "\n")
     write_json(

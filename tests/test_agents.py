@@ -178,6 +178,8 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     verdict = next(v for v in results["verdicts"] if v["name"] == "ppo (ppo)")
     assert verdict["seeds"] == 2 and 0.0 <= verdict["off_share"] <= 1.0 and verdict["action_std"] >= 0.0
     assert verdict["eta_minus_front"] == pytest.approx(verdict["eta"] - verdict["front_eta"])
+    best_constant = next(r for r in results["rows"] if r["name"].startswith("best constant"))
+    assert verdict["return_gap"] == pytest.approx(ppo_row["return"]["mean"] - best_constant["return"]["mean"])
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
     # Bad inputs exit 2 naming the argument: no run in the folder, a baseline of another env

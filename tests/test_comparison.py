@@ -6,7 +6,14 @@ import math
 
 import pytest
 
-from agents.comparison import action_variation, front_energy, front_eta, front_points, position
+from agents.comparison import (
+    action_variation,
+    front_energy,
+    front_eta,
+    front_points,
+    position,
+    return_gap,
+)
 from agents.open_loop import summarise_points
 
 # A front (energy, eta_r): off 10, Mn 2 at 8, Mn 1 at 6, Mn 0.5 at 5.5 (energy = 1/Mn).
@@ -69,3 +76,19 @@ def test_action_variation_by_hand() -> None:
     assert stats["mason_p10"] == stats["mason_p90"] == 2.0
     constant = {"action": [[0.3]] * 6, "mason_number": [1.0] * 6}
     assert action_variation([{"trace": constant}])["action_std"] == 0.0
+
+
+def test_return_gap_is_paired_per_seed() -> None:
+    # Seeds' returns -130, -128, -132 against a constant's -133: gaps 3, 5, 1; mean 3, sample sd 2,
+    # Student-t 95% half-width t(0.975, 2) * 2 / sqrt(3) = 4.303 * 1.1547 = 4.968: [-1.97, 7.97].
+    gap = return_gap([-130.0, -128.0, -132.0], -133.0)
+    assert gap["return_gap"] == pytest.approx(3.0)
+    assert gap["return_gap_low"] == pytest.approx(3.0 - 4.9683, abs=1e-3)
+    assert gap["return_gap_high"] == pytest.approx(3.0 + 4.9683, abs=1e-3)
+    assert gap["seeds_above"] == 3 and gap["return_verdict"].startswith("same")
+    assert return_gap([-120.0, -121.0, -119.0], -133.0)["return_verdict"] == "higher return"
+    assert return_gap([-150.0, -151.0, -149.0], -133.0)["return_verdict"] == "lower return"
+    one = return_gap([-140.0, math.nan], -133.0)  # a failed seed is left out
+    assert one["return_verdict"] == "lower return; one sample, no interval" and one["seeds_above"] == 0
+    with pytest.raises(ValueError, match="reference"):
+        return_gap([-130.0], math.inf)
