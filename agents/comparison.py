@@ -67,19 +67,24 @@ def front_energy(front: Sequence[tuple[float, float]], eta: float) -> float:
     return math.inf
 
 
+def side(value: float, low: float, high: float, reference: float) -> int:
+    """-1 if the interval ``[low, high]`` lies below ``reference``, +1 if above, 0 if it holds it (a NaN
+    interval, from one sample, stands for the point ``value``)."""
+    low = value if math.isnan(low) else low
+    high = value if math.isnan(high) else high
+    return -1 if high < reference else 1 if low > reference else 0
+
+
 def position(
     front: Sequence[tuple[float, float]], energy: float, eta: float, eta_low: float, eta_high: float
 ) -> dict[str, Any]:
     """Where a policy sits against the front (see the module docstring); intervals may be NaN."""
     reference = front_eta(front, energy)
-    low = eta if math.isnan(eta_low) else eta_low
-    high = eta if math.isnan(eta_high) else eta_high
-    if high < reference:
-        verdict = "below the constant-field front (lower eta_r at equal energy)"
-    elif low > reference:
-        verdict = "above the constant-field front (a constant field does better)"
-    else:
-        verdict = "on the constant-field front (within the 95% interval)"
+    verdict = {
+        -1: "below the constant-field front (lower eta_r at equal energy)",
+        1: "above the constant-field front (a constant field does better)",
+        0: "on the constant-field front (within the 95% interval)",
+    }[side(eta, eta_low, eta_high, reference)]
     if math.isnan(eta_low) or math.isnan(eta_high):
         verdict += "; one sample, no interval"
     return {
@@ -123,14 +128,14 @@ def return_gap(per_seed_returns: Sequence[float], reference: float) -> dict[str,
     mean, low, high = confidence_interval(gaps)
     if not gaps:
         verdict = "no finite return"
-    elif math.isnan(low):
-        verdict = ("higher" if mean > 0 else "lower") + " return; one sample, no interval"
-    elif low > 0:
-        verdict = "higher return"
-    elif high < 0:
-        verdict = "lower return"
     else:
-        verdict = "same return within the 95% interval"
+        verdict = {
+            1: "higher return",
+            -1: "lower return",
+            0: "same return within the 95% interval",
+        }[side(mean, low, high, 0.0)]
+        if math.isnan(low):
+            verdict += "; one sample, no interval"
     return {
         "return_gap": mean,
         "return_gap_low": low,

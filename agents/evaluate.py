@@ -185,11 +185,16 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
     }
 
 
+def format_interval(mean: float, low: float, high: float, spec: str) -> str:
+    """``mean [low, high]`` in the format ``spec``; the mean alone where there is no interval (NaN)."""
+    if math.isnan(low):
+        return format(mean, spec)
+    return f"{mean:{spec}} [{low:{spec}}, {high:{spec}}]"
+
+
 def format_table(rows: list[dict[str, Any]]) -> str:
     def cell(s: dict[str, float], digits: int = 3) -> str:
-        if math.isnan(s["ci_low"]):
-            return f"{s['mean']:.{digits}f}"
-        return f"{s['mean']:.{digits}f} [{s['ci_low']:.{digits}f}, {s['ci_high']:.{digits}f}]"
+        return format_interval(s["mean"], s["ci_low"], s["ci_high"], f".{digits}f")
 
     lines = [
         "| policy | samples | eta_r, 2nd half: mean [95% CI] | IQM | field energy <1/Mn> | return "
@@ -246,9 +251,7 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for v in items:
-        gap = f"{v['return_gap']:+.2f}"
-        if not math.isnan(v["return_gap_low"]):
-            gap += f" [{v['return_gap_low']:+.2f}, {v['return_gap_high']:+.2f}]"
+        gap = format_interval(v["return_gap"], v["return_gap_low"], v["return_gap_high"], "+.2f")
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
@@ -363,16 +366,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = build_parser().parse_args(argv)
     pareto = read_json(args.baseline / "pareto.json")
     groups = find_runs(args.runs)
+    configs = {
+        run: yaml.safe_load((run / "config.yml").read_text()) for runs in groups.values() for run in runs
+    }
+    for run, run_config in configs.items():
+        env_id = run_config["env_id"]
+        if env_id != pareto["env_id"]:
+            usage_error(f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}")
     # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
     # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
-    config = yaml.safe_load((next(iter(groups.values()))[0] / "config.yml").read_text())
-    for runs in groups.values():
-        for run in runs:
-            env_id = yaml.safe_load((run / "config.yml").read_text())["env_id"]
-            if env_id != pareto["env_id"]:
-                usage_error(
-                    f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}"
-                )
+    config = next(iter(configs.values()))
     probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
     probe.close()
@@ -425,10 +428,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         print(f"warning: start-state libraries differ between runs and baseline: {sorted(map(str, keys))}")
     by_label = {p["label"]: p for p in points}
     best = max(summary, key=lambda r: r["return"])  # for this reward
-    baselines = [
-        ("no field", by_label.get("off")),
-        (f"best constant ({best['label']})", by_label.get(best["label"])),
-    ]
+    best_name = f"best constant ({best['label']})"
+    baselines = [("no field", by_label.get("off")), (best_name, by_label.get(best["label"]))]
     baseline_rows = [
         aggregate_baseline(name, record, indices) for name, record in baselines if record is not None
     ]
@@ -444,7 +445,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
-    best_row = next(r for r in baseline_rows if r["name"].startswith("best constant"))
+    best_row = next(r for r in baseline_rows if r["name"] == best_name)
     items = verdicts(policy_rows, front_points(summary), list(played.values()), best_row["return"]["mean"])
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.open_loop import constant_action
+from agents.open_loop import constant_action, parse_mason
 from agents.rollout import make_env
 
 
@@ -29,12 +29,12 @@ def measure(env_id: str, mason: float, states: int, skip: int, intervals: int) -
     seconds = strain = 0.0
     steps = 0
     iterations, sweeps = [], []
+    unwrapped: Any = env.unwrapped
+    # the vector env's field along y, the magnitude env's direction
+    direction = "y" if unwrapped.vector_field else None
+    action = np.array(constant_action(unwrapped, mason, direction), dtype=np.float32)
     for index in range(states):
         env.reset(seed=0, options={"split": "train", "index": index})
-        unwrapped: Any = env.unwrapped
-        # the vector env's field along y, the magnitude env's direction
-        direction = "y" if unwrapped.vector_field else None
-        action = np.array(constant_action(unwrapped, mason, direction), dtype=np.float32)
         for _ in range(skip):
             env.step(action)
         for _ in range(intervals):
@@ -73,7 +73,7 @@ def main() -> None:
     if args.skip < 0:
         parser.error(f"--skip must be >= 0, got {args.skip}")
     try:
-        masons = [math.inf if m.strip() == "off" else float(m) for m in args.mason.split(",")]
+        masons = parse_mason(args.mason)
     except ValueError:
         parser.error(f"--mason takes 'off' or numbers separated by commas, got {args.mason!r}")
     if any(not (m > 0) for m in masons):
