@@ -35,7 +35,7 @@ import math
 import pickle
 import sys
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 import yaml
@@ -44,12 +44,9 @@ from agents.comparison import action_variation, front_eta, front_points, positio
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
+from agents.usage import usage_error
 
-
-def usage_error(message: str) -> NoReturn:
-    """Exit with status 2 (argparse's code for bad arguments) and the message on stderr."""
-    print(f"python -m agents.evaluate: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
+PROG = "python -m agents.evaluate"
 
 
 def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
@@ -61,7 +58,7 @@ def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
         else:
             key, runs = path, sorted(p.parent for p in path.glob("*/model.zip"))
         if not runs:
-            usage_error(f"RUN_DIRS: {path}: no model.zip in it or in its subfolders")
+            usage_error(PROG, f"RUN_DIRS: {path}: no model.zip in it or in its subfolders")
         config = yaml.safe_load((runs[0] / "config.yml").read_text())
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
@@ -78,13 +75,14 @@ def model_files(run: Path, which: str) -> tuple[Path, Path]:
         raise ValueError(f"model must be 'final' or 'best', got {which!r}")
     log = run / "eval" / "evaluations.npz"
     if not log.exists():
-        usage_error(f"--model best: {run}: no eval/evaluations.npz, so no best-validation checkpoint")
+        usage_error(PROG, f"--model best: {run}: no eval/evaluations.npz, so no best-validation checkpoint")
     with np.load(log) as data:
         steps = int(data["timesteps"][int(np.argmax(data["results"].mean(axis=1)))])
     model = run / "checkpoints" / f"ckpt_{steps}_steps.zip"
     if not model.exists():
         usage_error(
-            f"--model best: {run}: the best validation return was at {steps} steps, but {model} is missing"
+            PROG,
+            f"--model best: {run}: the best validation return was at {steps} steps, but {model} is missing",
         )
     return model, run / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
 
@@ -336,7 +334,7 @@ def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, floa
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.evaluate",
+        prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -372,7 +370,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
         if env_id != pareto["env_id"]:
-            usage_error(f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}")
+            usage_error(
+                PROG, f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}"
+            )
     # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
     # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
     config = next(iter(configs.values()))
@@ -383,7 +383,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     summary = summarise_points(points)
     split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
-    indices = baseline_indices[: args.episodes] if args.episodes else baseline_indices
+    if args.episodes is not None and not 1 <= args.episodes <= len(baseline_indices):
+        usage_error(PROG, f"--episodes must be in [1, {len(baseline_indices)}] (the baseline's states)")
+    indices = baseline_indices if args.episodes is None else baseline_indices[: args.episodes]
     # One policy per training group and way of acting: its mean action and/or its sampled actions.
     sampling = {"mean": [False], "sampled": [True], "both": [False, True]}[args.actions]
     best_suffix = ", best validation" if args.model == "best" else ""

@@ -30,6 +30,9 @@ import numpy as np
 
 from agents.rollout import confidence_interval, constant_policy, make_env, run_episode
 from agents.tasks import run_tasks
+from agents.usage import json_object, usage_error
+
+PROG = "python -m agents.open_loop"
 
 DIRECTIONS = {"y": (0.0, 1.0, 0.0), "x": (1.0, 0.0, 0.0), "z": (0.0, 0.0, 1.0), "xy": (1.0, 1.0, 0.0)}
 """Named directions for ``--directions`` (``xy``: 45 degrees in the shear plane)."""
@@ -255,7 +258,7 @@ def parse_mason(text: str) -> list[float]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.open_loop",
+        prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -275,14 +278,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     args = build_parser().parse_args(argv)
-    env_kwargs = json.loads(args.env_kwargs)
+    env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
     env = make_env(args.env, {**env_kwargs, "progress": True})
     unwrapped: Any = env.unwrapped
     mapping = unwrapped.mapping
-    episodes = args.episodes or unwrapped.split_sizes[args.split]
+    episodes = unwrapped.split_sizes[args.split] if args.episodes is None else args.episodes
     if not 1 <= episodes <= unwrapped.split_sizes[args.split]:
-        raise SystemExit(
-            f"--episodes must be in [1, {unwrapped.split_sizes[args.split]}] for --split {args.split}"
+        usage_error(
+            PROG, f"--episodes must be in [1, {unwrapped.split_sizes[args.split]}] for --split {args.split}"
         )
     if args.mason is None:
         masons = [m for m in parse_mason(",".join(str(v) for v in DEFAULT_MASON))]
@@ -290,18 +293,21 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         masons += [mapping.mason_min, mapping.mason_max]
         masons = sorted(set(masons), reverse=True, key=lambda m: m)
     else:
-        masons = parse_mason(args.mason)
+        try:
+            masons = parse_mason(args.mason)
+        except ValueError:
+            usage_error(PROG, f"--mason takes 'off' or numbers separated by commas, got {args.mason!r}")
     for m in masons:
         if not (math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max):
-            raise SystemExit(
-                f"--mason {m:g} is outside the env's range [{mapping.mason_min}, {mapping.mason_max}]"
+            usage_error(
+                PROG, f"--mason {m:g} is outside the env's range [{mapping.mason_min}, {mapping.mason_max}]"
             )
     directions: list[str | None] = [None]
     if unwrapped.vector_field:
         directions = [d.strip() for d in args.directions.split(",")]
         for d in directions:
             if d not in DIRECTIONS:
-                raise SystemExit(f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
+                usage_error(PROG, f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
     unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
     env.close()
     (args.out / "points").mkdir(parents=True, exist_ok=True)

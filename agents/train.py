@@ -38,6 +38,9 @@ import numpy as np
 import yaml
 
 from agents.tasks import parse_seeds, run_tasks
+from agents.usage import json_object, usage_error
+
+PROG = "python -m agents.train"
 
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "hyperparams"
 ALGOS = ("ppo", "sac")
@@ -267,7 +270,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
-            raise SystemExit(f"--hyperparams takes key=value, got {item!r}")
+            usage_error(PROG, f"--hyperparams takes key=value, got {item!r}")
         key, value = item.split("=", 1)
         out[key.strip()] = yaml.safe_load(value)
     return out
@@ -275,7 +278,7 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.train",
+        prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
@@ -305,11 +308,14 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     try:
         hp = load_hyperparams(args.algo, args.env, overrides)
     except ValueError as error:
-        raise SystemExit(str(error)) from None
-    env_kwargs = json.loads(args.env_kwargs)
+        usage_error(PROG, f"--env/--algo: {error}")
+    env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
     command = " ".join([sys.executable, "-m", "agents.train", *(argv if argv is not None else sys.argv[1:])])
     if args.seeds is not None:
-        seeds = parse_seeds(args.seeds)
+        try:
+            seeds = parse_seeds(args.seeds)
+        except ValueError as error:
+            usage_error(PROG, f"--seeds: {error}")
         outs = [args.out / f"seed{s}" for s in seeds]
     else:
         seeds = [0 if args.seed is None else args.seed]

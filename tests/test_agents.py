@@ -65,6 +65,32 @@ def test_hyperparameters_for_every_id() -> None:
     assert train.parse_overrides(["policy_kwargs={net_arch: [8]}"]) == {"policy_kwargs": {"net_arch": [8]}}
 
 
+@pytest.mark.parametrize(
+    ("module", "arguments", "named"),
+    [
+        (train, ["--seeds", "a-b"], "--seeds"),
+        (train, ["--hyperparams", "gamma"], "--hyperparams"),
+        (train, ["--env-kwargs", "{bad"], "--env-kwargs"),
+        (train, ["--env-kwargs", "[1]"], "--env-kwargs"),
+        (train, ["--algo", "ppo", "--env", "dipenv/Unknown-v0"], "--env/--algo"),
+        (open_loop, ["--env-kwargs", "{bad"], "--env-kwargs"),
+        (open_loop, ["--mason", "1,abc"], "--mason"),
+        (open_loop, ["--mason", "1000"], "--mason"),
+        (open_loop, ["--episodes", "0"], "--episodes"),
+    ],
+)
+def test_bad_command_line_input_exits_2_naming_the_argument(
+    module: object, arguments: list[str], named: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    base = ["--env", ENV, "--out", str(tmp_path / "out")]
+    with pytest.raises(SystemExit) as error:
+        module.main([*base, *arguments])  # type: ignore[attr-defined]
+    assert error.value.code == 2
+    message = capsys.readouterr().err
+    assert f"python -m agents.{module.__name__.split('.')[-1]}: error: {named}" in message  # type: ignore[attr-defined]
+    assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
 def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     baseline = tmp_path / "open_loop"
     rows = open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1,0.2", "--episodes", "1"])
@@ -193,6 +219,9 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     with pytest.raises(SystemExit) as mismatch:
         evaluate.main([str(ppo), "--baseline", str(other), "--out", str(out)])
     assert mismatch.value.code == 2 and "FieldVectorTiny-v0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as no_states:
+        evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--episodes", "0"])
+    assert no_states.value.code == 2 and "--episodes" in capsys.readouterr().err
 
     # The best-validation checkpoint of each seed (with the normalisation saved alongside it)
     best = evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--model", "best"])
