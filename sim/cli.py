@@ -4,6 +4,8 @@
     python -m sim sweep --phi 0.15,0.30,0.45 --mason 0.1,1,10,inf --seeds 3 --out DIR [--workers 2]
     python -m sim sweep --spec sweep.yml --out DIR        (or --preset small)
     python -m sim figures DIR [--out FIGURES]
+    python -m sim flow-curve --phi 0.45 --n-particles 100 --mason 1 --rates 0.1,0.3,1,3,10 \
+                             --strain-per-rate 10 --out DIR [--down] [--seed S] [--quiet]
 
 ``run`` and ``sweep`` share one table of simulation options (:data:`SIMULATION_OPTIONS`); in ``sweep``
 ``--phi``, ``--n-particles``, ``--mason`` and ``--mechanism`` take comma lists (the sweep is their
@@ -59,6 +61,8 @@ FLAGS = {
     "ewald_accuracy": "--ewald-accuracy",
     "out_dir": "--out",
     "resume": "--resume",
+    "rates": "--rates",
+    "strain_per_rate": "--strain-per-rate",
 }
 """The flag of each ``SimulationConfig`` field (and ``run_simulation`` argument) the command line sets."""
 
@@ -106,13 +110,15 @@ def _mason_number(text: str) -> float:
 
 
 def _shear_rate(text: str) -> float:
-    """``--shear-rate``: 1 (sheared) or 0 (quiescent, field only)."""
+    """``--shear-rate``: a finite number >= 0 in units of the reference rate (0: quiescent, field only)."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if value not in (0.0, 1.0):
-        raise argparse.ArgumentTypeError(f"must be 1 (sheared) or 0 (quiescent), got {text!r}")
+    if not (math.isfinite(value) and value >= 0.0):
+        raise argparse.ArgumentTypeError(
+            f"must be a finite number >= 0 (units of the reference rate; 0 = quiescent), got {text!r}"
+        )
     return value
 
 
@@ -237,7 +243,8 @@ SIMULATION_OPTIONS = (
     ),
     _Option(
         "--mason",
-        "Mason number eta*gammadot/(eps*E0^2) in (0, inf]; inf = no field, pure shear (default inf)",
+        "Mason number at the reference rate eta*gammadot_ref/(eps*E0^2) in (0, inf]; inf = no field, pure "
+        "shear (default inf)",
         _mason_number,
         math.inf,
         listable=True,
@@ -258,13 +265,15 @@ SIMULATION_OPTIONS = (
     ),
     _Option(
         "--shear-rate",
-        "1 (sheared) or 0 (quiescent: field only, needs a finite --mason) (default 1)",
+        "shear rate in units of the reference rate gammadot_ref, finite and >= 0 (0: quiescent, field "
+        "only, needs a finite --mason); --mason is the Mason number at the reference rate (default 1)",
         _shear_rate,
         1.0,
     ),
     _Option(
         "--strain",
-        "run length, > 0: strain (time in units a/U0 with --shear-rate 0) (default 30)",
+        "run length, > 0: accumulated strain (time in units 1/gammadot_ref with --shear-rate 0) "
+        "(default 30)",
         float,
         30.0,
     ),
@@ -447,7 +456,69 @@ def build_parser() -> argparse.ArgumentParser:
     figures.add_argument("--out", default=None, help="folder of the figures (default DIR/figures)")
     figures.add_argument("--quiet", action="store_true", help="no notes on stdout")
     figures.set_defaults(parser=figures)
+    flow_curve = sub.add_parser(
+        "flow-curve",
+        help="a rheometer's rate sweep at fixed field: eta_r, shear stress, N1, N2 per shear rate",
+        description="Hold each shear rate of --rates (units of the reference rate) for --strain-per-rate, "
+        "each starting from the state the previous one left, and average over the second half of each "
+        "hold; --down adds the way back. --mason is the Mason number at the reference rate, so the "
+        "instantaneous Mn is rate x --mason. One curve per --mason value (in OUT/Mn<value>/ when there "
+        "are several); OUT/flow_curve.csv and OUT/flow_curve.png hold them all. A rerun continues after "
+        "the last finished hold. Exit status: 0 done, 1 a curve failed, 2 bad input, 130 interrupted.",
+    )
+    _add_flow_curve_arguments(flow_curve)
+    flow_curve.set_defaults(parser=flow_curve)
     return parser
+
+
+def _option(flag: str) -> _Option:
+    """The entry of :data:`SIMULATION_OPTIONS` for ``flag``."""
+    return next(option for option in SIMULATION_OPTIONS if option.flag == flag)
+
+
+def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
+    """The flags of ``python -m sim flow-curve``: the suspension and numerics options of ``run`` (one
+    value each, ``--mason`` a comma list), the rates, and the task options of ``sweep``."""
+    for flag in ("--phi", "--n-particles", "--field-direction", "--mechanism", "--dt", "--max-displacement",
+                 "--near-field", "--near-field-cutoff", "--ewald-accuracy"):
+        option = _option(flag)
+        parser.add_argument(
+            flag, type=option.type or str, default=option.default, choices=option.choices, help=option.help
+        )
+    parser.add_argument(
+        "--mason", type=_comma_list(_mason_number), default=[1.0], metavar="LIST",
+        help="Mason number at the reference rate eta*gammadot_ref/(eps*E0^2) in (0, inf]; a comma list: "
+        "one curve per field (default 1)",
+    )
+    parser.add_argument(
+        "--rates", type=_comma_list(_positive_rate), default=[0.1, 0.3, 1.0, 3.0, 10.0], metavar="LIST",
+        help="shear rates of the upward sweep in units of gammadot_ref, > 0 and increasing "
+        "(default 0.1,0.3,1,3,10)",
+    )
+    parser.add_argument(
+        "--strain-per-rate", type=float, default=10.0,
+        help="strain each rate is held for, > 0; the second half is averaged (default 10)",
+    )
+    parser.add_argument("--down", action="store_true", help="add the sweep back down (hysteresis)")
+    parser.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
+    parser.add_argument("--out", required=True, help="output directory (created; must not be a file)")
+    parser.add_argument(
+        "--workers", type=positive_int, default=1,
+        help="curves at once in local worker processes, >= 1 (1: in this process) (default 1)",
+    )
+    parser.add_argument(
+        "--scheduler", type=_scheduler, default=None, metavar="ADDRESS",
+        help="run the curves on the Dask cluster at ADDRESS (tcp://HOST:8786)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bar and no compile notice")
+
+
+def _positive_rate(text: str) -> float:
+    """``--rates``: one shear rate, a finite number > 0."""
+    value = _shear_rate(text)
+    if value == 0.0:
+        raise argparse.ArgumentTypeError(f"must be > 0 (a flow curve has no rate-0 point), got {text!r}")
+    return value
 
 
 def _parse(argv: list[str]) -> argparse.Namespace:
@@ -703,6 +774,75 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
     return 1 if failed else 0
 
 
+def _flow_curve(args: argparse.Namespace) -> int:
+    """``python -m sim flow-curve``."""
+    from sim.flow_curve import FlowCurveSpec, curve_folder, resume_point, run_flow_curve_task, write_combined
+    from sim.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.tasks import TaskFailure, run_tasks
+
+    parser: argparse.ArgumentParser = args.parser
+    out = Path(args.out)
+    if not args.out or (out.exists() and not out.is_dir()):
+        parser.error(f"--out must name a directory (created if missing), got {args.out!r}")
+    specs = []
+    for mason in args.mason:
+        try:
+            config = SimulationConfig(
+                n_particles=args.n_particles, volume_fraction=args.phi, mason_number=mason,
+                field_direction=args.field_direction, mechanism=args.mechanism, seed=args.seed,
+                time_step=args.dt, max_displacement=args.max_displacement, near_field=args.near_field,
+                near_field_cutoff=args.near_field_cutoff, ewald_accuracy=args.ewald_accuracy,
+            )
+            specs.append(FlowCurveSpec(config, tuple(args.rates), args.strain_per_rate, args.down))
+        except ValueError as exc:
+            parser.error(with_flags(str(exc)))
+    folders = [out if len(specs) == 1 else out / curve_folder(s.config.mason_number) for s in specs]
+    for spec, folder in zip(specs, folders, strict=True):
+        try:
+            resume_point(folder, spec)  # a folder holding another curve is refused before any work
+        except ValueError as exc:
+            parser.error(with_flags(str(exc)).replace("out_dir", "--out"))
+    if not args.quiet and args.scheduler is None and not compiled_kernels_cached():
+        print(COMPILE_NOTICE, file=sys.stderr, flush=True)
+    show_bar = not args.quiet and sys.stderr.isatty()
+    payloads = [
+        {**spec.to_dict(), "out": str(folder), "progress": show_bar and len(specs) == 1}
+        for spec, folder in zip(specs, folders, strict=True)
+    ]
+    try:
+        results = run_tasks(
+            run_flow_curve_task, payloads, workers=args.workers, scheduler=args.scheduler, on_error="record",
+            progress=show_bar and len(specs) > 1, description="flow curves",
+        )
+    except KeyboardInterrupt:
+        print(f"{parser.prog}: interrupted; rerun the same command to continue", file=sys.stderr)
+        return 130
+    curves = {
+        spec.config.mason_number: rows
+        for spec, rows in zip(specs, results, strict=True)
+        if not isinstance(rows, TaskFailure)
+    }
+    if len(specs) > 1 and curves:
+        write_combined(out, curves)
+    failed = 0
+    for spec, rows in zip(specs, results, strict=True):
+        if isinstance(rows, TaskFailure):
+            failed += 1
+            print(f"{parser.prog}: Mn_ref {spec.config.mason_number:g} failed: {rows.error}: {rows.message}",
+                  file=sys.stderr)
+            continue
+        if not args.quiet:
+            for row in rows:
+                print(
+                    f"Mn_ref {spec.config.mason_number:g} {row['direction']:>4} rate {row['shear_rate']:<6g} "
+                    f"Mn {row['mason_number']:<8.3g} eta_r {row['relative_viscosity']:.3f} "
+                    f"+- {row['relative_viscosity_stderr']:.3f}  N1 {row['n1']:.3g}  N2 {row['n2']:.3g}"
+                )
+    if not args.quiet:
+        print(f"{out / 'flow_curve.csv'}, {out / 'flow_curve.png'}")
+    return 1 if failed else 0
+
+
 def _figures(args: argparse.Namespace) -> int:
     """``python -m sim figures``."""
     from sim.sweep_figures import make_figures
@@ -738,4 +878,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _run(args, args_list)
     if args.command == "sweep":
         return _sweep(args, args_list)
+    if args.command == "flow-curve":
+        return _flow_curve(args)
     return _figures(args)

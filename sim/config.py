@@ -1,8 +1,10 @@
 """Validated simulation parameters.
 
-Units (``sim.units``): sphere radius ``a = 1``, viscosity ``eta = 1``, shear rate ``gammadot = 1``, so
-time is strain and stress is in ``eta gammadot``. The Mason number ``Mn = eta gammadot / (eps E0^2)``;
-``Mn = inf`` is pure shear.
+Units (``docs/units.md``): sphere radius ``a = 1``, viscosity ``eta = 1`` and a reference shear rate
+``gammadot_ref = 1``: time is in ``1/gammadot_ref`` (it equals the strain while the rate is 1) and stress
+in ``eta gammadot_ref``. The field is given by the Mason number at the reference rate
+``Mn_ref = eta gammadot_ref / (eps E0^2)`` (``inf`` is no field); at a shear rate ``gammadot`` the
+instantaneous Mason number is ``(gammadot / gammadot_ref) Mn_ref``.
 """
 
 from __future__ import annotations
@@ -52,6 +54,12 @@ def _check_range(name: str, value: float, low: float, high: float, low_open: boo
         raise ValueError(f"{name} must be in {left}{low}, {high}{right}, got {value!r}")
 
 
+def check_shear_rate(shear_rate: float, name: str = "shear_rate") -> None:
+    """Raise ``ValueError`` naming ``name`` unless ``shear_rate`` is a finite number >= 0 (units
+    ``gammadot_ref``)."""
+    _check_range(name, shear_rate, 0.0, math.inf, False, True)
+
+
 @dataclass(frozen=True)
 class SimulationConfig:
     """Parameters of one run; a run is a pure function of this object (it includes the seed).
@@ -60,18 +68,23 @@ class SimulationConfig:
         n_particles: number of spheres N, in [2, 50000] (the box must also be at least twice the pair-list
             cut-off).
         volume_fraction: phi = N (4/3) pi a^3 / L^3, in [1e-3, 0.6].
-        mason_number: Mn = eta gammadot / (eps E0^2) of the initial field, in (0, inf]; ``inf`` is no
-            field (pure shear). With ``shear_rate = 0`` (quiescent) only its finiteness matters: the
-            field sets the units (time a/U0, stress eps E0^2).
+        mason_number: ``Mn_ref = eta gammadot_ref / (eps E0^2)`` of the initial field, in (0, inf]; ``inf``
+            is no field (pure shear). The dipolophoretic velocity scale is ``U0 = a gammadot_ref / Mn_ref``
+            at every shear rate; the instantaneous Mason number is ``shear_rate * mason_number``. A
+            quiescent run at ``mason_number = 1`` has ``U0 = 1``: its time is in ``a/U0`` and its stress
+            in ``eps E0^2``.
         field_direction: unit vector of the electric field (normalised on construction); default y.
         mechanism: ``dip`` (ICEP + DEP, the paper's model), ``icep`` or ``dep`` (DEP alone: an
             electrorheological fluid).
-        shear_rate: 1 (sheared; time is strain, U0 = a gammadot / Mn) or 0 (quiescent: field only, time
-            in units a/U0, stress in eps E0^2; Park & Saintillan 2010, Mirfendereski & Park 2019).
-        strain: total run length in time units (strain when sheared, a/U0 when quiescent), >= 0 (a run
-            through :func:`sim.run.run_simulation` needs > 0).
+        shear_rate: initial shear rate ``gammadot / gammadot_ref``, finite and >= 0 (default 1); 0 is a
+            quiescent suspension (field only; Park & Saintillan 2010, Mirfendereski & Park 2019).
+            :meth:`sim.Simulation.set_shear_rate` changes it during a run.
+        strain: run length as accumulated strain at ``shear_rate`` (the run lasts ``strain / shear_rate``
+            in time, :attr:`duration`); for a quiescent run, its length in time. >= 0 (a run through
+            :func:`sim.run.run_simulation` needs > 0).
         seed: seed of the initial random packing.
-        time_step: largest AB2 step in time units, in (0, 0.05]; the step adapts below it.
+        time_step: largest AB2 step in time units (``1/gammadot_ref``), in (0, 0.05]; the step adapts
+            below it.
         max_displacement: bound on the non-affine displacement in one step, as a fraction of the mean
             spacing ``n^(-1/3)``, in (0, 0.05]; the step is ``min(time_step, bound / max |U - u_inf|)``.
         near_field: ``exact`` (default: exact two-sphere dipolophoresis functions for pairs closer than
@@ -80,14 +93,15 @@ class SimulationConfig:
         near_field_taper: width over which the near-field correction is tapered to 0 at ``r_c``
             (units a), in (0, r_c - 2).
         ewald_accuracy: relative accuracy of the periodic far-field sums, in [1e-12, 1e-2].
-        transient_strain: strain discarded before averaging; ``None`` means 10, or half the run if the
-            run is shorter than 20.
+        transient_strain: strain (time when quiescent) discarded before averaging; ``None`` means 10, or
+            half the run if the run is shorter than 20.
         n_blocks: number of blocks for block-average standard errors (>= 2).
         lubrication_cutoff: gap below which pair lubrication acts (units a), in (0, 0.9] (the log terms
             must stay positive: cut-off + regularisation < 1).
         lubrication_regularisation: delta in xi -> xi + delta (units a), in [0, 0.1].
         repulsion_range: sigma of the repulsive force (units a), in (0, 0.1].
-        repulsion_shear_rate_ratio: gammadot* = 6 pi eta a^2 gammadot / F0, > 0 (Sierou & Brady 2002: 5000).
+        repulsion_shear_rate_ratio: ``gammadot* = 6 pi eta a^2 gammadot_ref / F0`` at the reference rate,
+            > 0 (Sierou & Brady 2002: 5000), so that ``F0`` is a material constant.
         overlap_min_gap: gap enforced by overlap removal after every step (units a), in (0, 0.01].
         initial_min_gap: smallest gap of the initial packing (units a), in [overlap_min_gap, 0.1].
         solver_tolerance: relative residual of the resistance solve, in (0, 1e-4].
@@ -141,8 +155,7 @@ class SimulationConfig:
             raise ValueError(f"mason_number must be in (0, inf], got {self.mason_number!r}")
         if self.mechanism not in MECHANISMS:
             raise ValueError(f"mechanism must be one of {', '.join(MECHANISMS)}, got {self.mechanism!r}")
-        if isinstance(self.shear_rate, bool) or self.shear_rate not in (0, 1):
-            raise ValueError(f"shear_rate must be 1 (sheared) or 0 (quiescent), got {self.shear_rate!r}")
+        check_shear_rate(self.shear_rate)
         object.__setattr__(self, "shear_rate", float(self.shear_rate))
         if self.shear_rate == 0.0 and math.isinf(self.mason_number):
             raise ValueError(
@@ -160,11 +173,11 @@ class SimulationConfig:
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
         _check_range("time_step", self.time_step, 0.0, 0.05, True, False)
-        if self.strain / self.time_step > MAX_STEPS:
+        if self.duration / self.time_step > MAX_STEPS:
             raise ValueError(
-                f"time_step={self.time_step!r} is too small for strain={self.strain!r}: the run would take "
-                f"{self.strain / self.time_step:.3g} steps (more than {MAX_STEPS:.0e}); time_step must be "
-                f">= {self.strain / MAX_STEPS:.3g}"
+                f"time_step={self.time_step!r} is too small for strain={self.strain!r} at "
+                f"shear_rate={self.shear_rate!r}: the run would take {self.duration / self.time_step:.3g} "
+                f"steps (more than {MAX_STEPS:.0e}); time_step must be >= {self.duration / MAX_STEPS:.3g}"
             )
         _check_range("max_displacement", self.max_displacement, 0.0, 0.05, True, False)
         _check_range("ewald_accuracy", self.ewald_accuracy, 1.0e-12, 1.0e-2, False, False)
@@ -230,16 +243,31 @@ class SimulationConfig:
         return box_length_for(self.n_particles, self.volume_fraction)
 
     @property
+    def duration(self) -> float:
+        """Length of the run in time (units ``1/gammadot_ref``): ``strain / shear_rate``, or ``strain`` when
+        quiescent; the clock at which a run through :func:`sim.run.run_simulation` ends."""
+        return self.strain / self.shear_rate if self.shear_rate > 0.0 else self.strain
+
+    def time_of(self, strain: float) -> float:
+        """Time at which a run at ``shear_rate`` reaches ``strain`` from 0 (``strain`` if quiescent)."""
+        return strain / self.shear_rate if self.shear_rate > 0.0 else strain
+
+    @property
     def n_steps(self) -> int:
-        """Number of steps to reach ``strain`` (rounded up)."""
-        return int(math.ceil(self.strain / self.time_step - 1e-9))
+        """Number of steps of the largest size to reach :attr:`duration` (rounded up)."""
+        return int(math.ceil(self.duration / self.time_step - 1e-9))
 
     @property
     def transient(self) -> float:
-        """Strain discarded before averaging."""
+        """Strain (time when quiescent) discarded before averaging."""
         if self.transient_strain is not None:
             return self.transient_strain
         return 10.0 if self.strain >= 20.0 else 0.5 * self.strain
+
+    @property
+    def transient_time(self) -> float:
+        """The clock at which averaging starts: :attr:`transient` as a time."""
+        return self.time_of(self.transient)
 
     @property
     def pure_shear(self) -> bool:
@@ -248,7 +276,7 @@ class SimulationConfig:
 
     @property
     def quiescent(self) -> bool:
-        """True when there is no shear flow (``shear_rate = 0``)."""
+        """True when the run starts without shear flow (``shear_rate = 0``)."""
         return self.shear_rate == 0.0
 
     @property

@@ -6,34 +6,34 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.observables.stress import rheology
 from sim.simulation import StepRecords
 from sim.sweep_figures import plot_maron_pierce
 
 
 def plot_rheology(records: StepRecords, path: Path, transient: float, title: str = "") -> None:
-    """eta_r, N1 and N2 (units eta gammadot) against strain, with the discarded transient shaded.
+    """eta_r, N1 and N2 (units eta gammadot_ref) against time, with the discarded transient shaded.
 
     A legend above the panels explains the marks: the per-step values (thin line), the transient that
-    the averages discard (grey band, strain 0 to ``transient``) and the mean over the rest (dashed line).
+    the averages discard (grey band, time 0 to ``transient``, a clock time) and the mean over the rest
+    (dashed line). Time is in ``1/gammadot_ref``: at the reference rate it is the strain.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    eta, n1, n2 = rheology(records.total_stress)
+    eta, n1, n2 = records.rheology()
     fig, axes = plt.subplots(3, 1, figsize=(7, 7.4), sharex=True, layout="constrained")
     for ax, values, label in zip(
         axes, (eta, n1, n2), (r"$\eta_r$", r"$N_1/\eta\dot\gamma$", r"$N_2/\eta\dot\gamma$"), strict=True
     ):
-        ax.plot(records.strain, values, lw=0.6, label="per step")
-        ax.axvspan(0.0, transient, color="0.9", label=f"transient (strain < {transient:g}), discarded")
-        mask = records.strain >= transient
+        ax.plot(records.time, values, lw=0.6, label="per step")
+        ax.axvspan(0.0, transient, color="0.9", label=f"transient (time < {transient:g}), discarded")
+        mask = records.time >= transient
         if np.any(mask):
             ax.axhline(values[mask].mean(), color="k", ls="--", lw=0.8, label="mean after the transient")
         ax.set_ylabel(label)
-    axes[-1].set_xlabel(r"strain $\dot\gamma t$")
+    axes[-1].set_xlabel(r"time $\dot\gamma_\mathrm{ref} t$ (the strain at the reference rate)")
     if title:
         axes[0].set_title(title)
     handles, labels = axes[0].get_legend_handles_labels()

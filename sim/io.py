@@ -4,9 +4,11 @@ A run directory holds:
 
 ================== ==================================================================================
 ``params.json``    every parameter of the run (``SimulationConfig``), box side, package versions
-``timeseries.csv`` per step: strain (time when quiescent), step size, Mason number in force, min gap,
-                   solver iterations, overlap sweeps, RMS of the DIP and shear velocities, eta_r, N1,
-                   N2 and the six independent stress components of every contribution
+``timeseries.csv`` per step: time (units 1/gammadot_ref), accumulated strain, step size, Mason number
+                   at the reference rate, shear rate, instantaneous Mason number (rate x Mn_ref), min
+                   gap, solver iterations, overlap sweeps, RMS of the DIP and shear velocities, eta_r
+                   (Sigma_xy / rate), N1, N2 and the six independent stress components of every
+                   contribution (stress in eta gammadot_ref)
 ``checkpoint.npz`` state + records + parameters + observable accumulators; ``--resume`` continues from it
                    bit for bit
 ``final_state.npz`` positions and the rest of the state at the end (with the accumulated non-affine
@@ -33,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from sim.config import SimulationConfig
-from sim.observables.stress import STRESS_CONTRIBUTIONS, rheology
+from sim.observables.stress import STRESS_CONTRIBUTIONS
 from sim.simulation import StepRecords
 from sim.state import SimulationState
 
@@ -116,12 +118,15 @@ def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | N
 def write_timeseries(path: Path, records: StepRecords) -> None:
     """``timeseries.csv`` with one row per step (see the module docstring for columns)."""
     total = records.total_stress
-    eta, n1, n2 = rheology(total)
+    eta, n1, n2 = records.rheology()
     columns = [
         np.arange(records.strain.size),
+        records.time,
         records.strain,
         records.time_step,
         records.mason_number,
+        records.shear_rate,
+        records.instantaneous_mason_number,
         records.min_gap,
         records.solver_iterations,
         records.overlap_sweeps,
@@ -133,9 +138,12 @@ def write_timeseries(path: Path, records: StepRecords) -> None:
     ]
     header = [
         "step",
+        "time",
         "strain",
         "dt",
         "mason_number",
+        "shear_rate",
+        "instantaneous_mason_number",
         "min_gap",
         "solver_iterations",
         "overlap_sweeps",
@@ -203,8 +211,8 @@ def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, Step
         config = SimulationConfig.from_dict(json.loads(str(data["config"])))
         return (
             config,
-            SimulationState.from_arrays(data),
-            StepRecords.from_arrays(data),
+            SimulationState.from_arrays(data, config.shear_rate),
+            StepRecords.from_arrays(data, config.shear_rate),
             float(data["wall_seconds"]),
         )
 

@@ -49,8 +49,10 @@ def check_run_length(config: SimulationConfig, names: Mapping[str, str] | None =
         raise ValueError(
             f"{strain} must be > 0 for a run (there is nothing to average otherwise), got {config.strain!r}"
         )
-    earliest_last_sample = max(config.strain - config.time_step, 0.0)
-    if config.transient > earliest_last_sample:
+    earliest_last_sample = max(config.duration - config.time_step, 0.0)  # a clock time
+    if config.transient_time > earliest_last_sample:
+        if config.shear_rate > 0.0:
+            earliest_last_sample *= config.shear_rate  # as a strain, like the flags
         default = " (the default: half of a run shorter than 20)" if config.transient_strain is None else ""
         raise ValueError(
             f"no samples after the transient: averaging starts at strain {config.transient:g}{default}, "
@@ -92,8 +94,10 @@ def _load_resumable(
             f"{resume}: the checkpoint in {checkpoint.parent} was written with different parameters: "
             f"{listed}; only {_name('strain', names)} may differ (to extend a run)"
         )
-    last_start = float(records.strain[-1]) if records.strain.size else -math.inf
-    if last_start >= stop_time(config.strain, config.time_step):  # a run to config.strain stops before it
+    last_start = float(records.time[-1]) if records.time.size else -math.inf
+    if last_start >= stop_time(config.duration, config.time_step):  # a run to config.strain stops before it
+        if config.shear_rate > 0.0:
+            last_start *= config.shear_rate  # as a strain, like the flags
         strain = _name("strain", names)
         raise ValueError(
             f"{resume}: the checkpoint in {checkpoint.parent} has already run past {strain}="
@@ -245,18 +249,22 @@ def _advance_with_checkpoints(
     show = sys.stderr.isatty() if progress is None else progress
     bar = None
     next_checkpoint = (
-        math.floor(sim.state.strain / config.checkpoint_every + 1e-9) + 1
+        math.floor(sim.state.time / config.checkpoint_every + 1e-9) + 1
     ) * config.checkpoint_every
+
+    def run_length(s: Simulation) -> float:
+        """How far the run has come, in the unit of ``config.strain`` (strain; time when quiescent)."""
+        return min(s.state.strain if config.shear_rate > 0.0 else s.state.time, config.strain)
 
     def on_chunk(s: Simulation) -> None:
         nonlocal next_checkpoint, bar
         if show and bar is None:
-            bar = _progress_bar(config, min(s.state.strain, config.strain))
+            bar = _progress_bar(config, run_length(s))
         elif bar is not None:
-            bar.n = round(min(s.state.strain, config.strain), 6)
+            bar.n = round(run_length(s), 6)
             bar.refresh()
         observables.sample_if_due(s)
-        if s.state.strain >= next_checkpoint - 1e-9:
+        if s.state.time >= next_checkpoint - 1e-9:
             io.save_checkpoint(
                 checkpoint,
                 config,
@@ -267,11 +275,11 @@ def _advance_with_checkpoints(
             )
             next_checkpoint += config.checkpoint_every
 
-    end = stop_time(config.strain, config.time_step)
+    end = stop_time(config.duration, config.time_step)
     try:
         observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
-        while sim.state.strain < end:
-            target = min(observables.next_sample_time, config.strain)
+        while sim.state.time < end:
+            target = min(observables.next_sample_time, config.duration)
             sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
     finally:
         if bar is not None:
@@ -301,6 +309,7 @@ def _write_results(
         "particle_pressure": rheo.particle_pressure,
         "particle_pressure_stderr": rheo.particle_pressure_stderr,
         "strain": sim.state.strain,
+        "time": sim.state.time,
         "steps": sim.state.step,
         "n_particles": config.n_particles,
         "volume_fraction": config.volume_fraction,
@@ -314,7 +323,7 @@ def _write_results(
         "seed": config.seed,
         "min_gap": float(records.min_gap.min()) if records.min_gap.size else math.nan,
         "wall_seconds": wall,
-        "averaged_from_strain": rheo.averaged_from_strain,
+        "averaged_from_strain": config.transient,
         "averaged_samples": rheo.samples,
         "mean_solver_iterations": float(records.solver_iterations.mean()) if records.strain.size else 0.0,
         "max_solver_iterations": int(records.solver_iterations.max()) if records.strain.size else 0,
@@ -336,7 +345,7 @@ def _write_results(
     plot_rheology(
         records,
         out / "stress.png",
-        rheo.averaged_from_strain,
+        rheo.averaged_from_time,
         title=f"phi = {config.volume_fraction}, N = {config.n_particles}, Mn = {config.mason_number}",
     )
     return result

@@ -132,8 +132,8 @@ class RunObservables:
         Raises:
             ValueError: the checkpoint sampled at another ``sample_interval``.
         """
-        last_start = float(records.strain[-1]) if records is not None and records.strain.size else -math.inf
-        wanted = first_sample_index(config.transient, sample_interval)
+        last_start = float(records.time[-1]) if records is not None and records.time.size else -math.inf
+        wanted = first_sample_index(config.transient_time, sample_interval)
         first = wanted  # the first sample point at or after the transient that the state has not passed
         while stop_time(first * sample_interval, config.time_step) <= last_start:
             first += 1
@@ -167,11 +167,11 @@ class RunObservables:
     def sample_if_due(self, sim: Simulation) -> bool:
         """Sample ``sim`` if its clock has reached the next ``t_k`` (by the rule of :func:`stop_time`)."""
         config = sim.config
-        clock = sim.state.strain
+        clock = sim.state.time
         if clock < stop_time(self.next_sample_time, config.time_step):
             return False
         if (self.next_index - self.first_index) % PAIR_SAMPLE_STRIDE == 0:
-            strain = config.shear_rate * clock
+            strain = sim.state.strain
             self.pair_distribution.add(sim.state.positions, strain)
             if 2.0 * max(DEFAULT_FABRIC_CUTOFF, 2.0 + DEFAULT_CONTACT_GAP) <= config.box_length:
                 self.fabric_sum += fabric_tensor(

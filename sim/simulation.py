@@ -3,6 +3,11 @@
 The step itself is compiled (:func:`sim.stepper.advance`); this facade calls it in chunks of many steps,
 keeps the per-step records (stress per contribution, minimum gap, solver iterations), and offers
 snapshot/restore for environments that reset from pre-sheared states.
+
+Two parameters may change between ``advance`` calls: the field (:meth:`Simulation.set_field`) and the shear
+rate (:meth:`Simulation.set_shear_rate`). The clock (``state.time``, units ``1/gammadot_ref``) and the
+accumulated strain (``state.strain = int gammadot dt``) are kept apart; they are equal while the rate is the
+reference rate 1 (``docs/units.md``).
 """
 
 from __future__ import annotations
@@ -15,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.config import SimulationConfig
+from sim.config import SimulationConfig, check_shear_rate
 from sim.geometry.configurations import random_packing
 from sim.observables.stress import (
     N_CONTRIBUTIONS,
@@ -25,7 +30,7 @@ from sim.observables.stress import (
     rheology,
 )
 from sim.state import SimulationState
-from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters
+from sim.step_parameters import field_parameters, run_ewald_plan, step_parameters, with_shear_rate
 from sim.stepper import STATUS_MESSAGES, STATUS_OK, advance, stop_time
 
 
@@ -43,6 +48,8 @@ _RECORD_FIELDS = (
     "u_rms_dip",
     "u_rms_shear",
     "mason_number",
+    "time",
+    "shear_rate",
 )
 
 
@@ -54,17 +61,21 @@ class StepRecords:
     (``time_step``), which varies when the step adapts.
 
     Attributes:
-        strain: (S,) clock at which each sample was evaluated (strain, or time a/U0 when quiescent).
-        time_step: (S,) size of the step taken after the sample.
-        stress: (S, C, 3, 3) stress contributions (units eta gammadot; eps E0^2 when quiescent),
-            C = len(STRESS_CONTRIBUTIONS).
+        strain: (S,) accumulated strain at which each sample was evaluated.
+        time_step: (S,) size (time, units ``1/gammadot_ref``) of the step taken after the sample.
+        stress: (S, C, 3, 3) stress contributions (units ``eta gammadot_ref``; a quiescent run at
+            ``Mn_ref = 1`` has ``eps E0^2 = eta gammadot_ref``), C = len(STRESS_CONTRIBUTIONS).
         min_gap: (S,) smallest surface gap among listed pairs (units a).
         solver_iterations: (S,) PCG iterations.
         overlap_sweeps: (S,) overlap-removal sweeps after the step (0 when nothing overlapped).
         u_rms_dip: (S,) RMS over particles of the dipolophoretic velocity ``|U^d|``.
         u_rms_shear: (S,) RMS over particles of the shear-and-repulsion disturbance velocity
             ``|U' |`` (translational, the affine ``u_inf`` excluded).
-        mason_number: (S,) Mason number of the field in force during the step (inf: off).
+        mason_number: (S,) Mason number at the reference rate ``Mn_ref`` of the field in force during
+            the step (inf: off); :attr:`instantaneous_mason_number` is ``shear_rate * mason_number``.
+        time: (S,) clock at which each sample was evaluated (units ``1/gammadot_ref``); defaults to
+            ``strain`` (records made at the reference rate).
+        shear_rate: (S,) shear rate ``gammadot / gammadot_ref`` in force during the step; defaults to 1.
     """
 
     strain: np.ndarray
@@ -76,6 +87,14 @@ class StepRecords:
     u_rms_dip: np.ndarray
     u_rms_shear: np.ndarray
     mason_number: np.ndarray
+    time: np.ndarray = None  # type: ignore[assignment]
+    shear_rate: np.ndarray = None  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.time is None:
+            self.time = np.array(self.strain, dtype=np.float64)
+        if self.shear_rate is None:
+            self.shear_rate = np.ones_like(self.strain, dtype=np.float64)
 
     @classmethod
     def empty(cls) -> StepRecords:
@@ -86,6 +105,8 @@ class StepRecords:
             np.zeros(0),
             np.zeros(0, dtype=np.int64),
             np.zeros(0, dtype=np.int64),
+            np.zeros(0),
+            np.zeros(0),
             np.zeros(0),
             np.zeros(0),
             np.zeros(0),
@@ -102,8 +123,18 @@ class StepRecords:
         return {f"record_{name}": getattr(self, name) for name in _RECORD_FIELDS}
 
     @classmethod
-    def from_arrays(cls, data: dict[str, np.ndarray] | np.lib.npyio.NpzFile) -> StepRecords:
-        return cls(*(np.array(data[f"record_{name}"]) for name in _RECORD_FIELDS))
+    def from_arrays(
+        cls, data: dict[str, np.ndarray] | np.lib.npyio.NpzFile, shear_rate: float = 1.0
+    ) -> StepRecords:
+        """Inverse of :meth:`arrays`. Records saved before the shear rate could change (no
+        ``record_time``) held the clock in ``record_strain`` at one rate: they load with that clock as
+        ``time``, ``shear_rate`` (the run's rate, given by the caller) and strain ``shear_rate * time``."""
+        if "record_time" in data:
+            return cls(*(np.array(data[f"record_{name}"]) for name in _RECORD_FIELDS))
+        clock = np.array(data["record_strain"], dtype=np.float64)
+        old = {name: np.array(data[f"record_{name}"]) for name in _RECORD_FIELDS[:-2]}
+        old["strain"] = shear_rate * clock
+        return cls(**old, time=clock, shear_rate=np.full(clock.shape, float(shear_rate)))
 
     def select(self, mask: np.ndarray) -> StepRecords:
         """The records where ``mask`` (S,) is true."""
@@ -114,13 +145,25 @@ class StepRecords:
         """(S, 3, 3) sum of all contributions."""
         return self.stress.sum(axis=1)
 
+    @property
+    def instantaneous_mason_number(self) -> np.ndarray:
+        """(S,) ``Mn = (gammadot / gammadot_ref) Mn_ref`` in force during each step (inf: field off)."""
+        with np.errstate(invalid="ignore"):
+            return np.where(np.isinf(self.mason_number), np.inf, self.shear_rate * self.mason_number)
+
+    def rheology(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per step ``eta_r = Sigma_xy / gammadot``, ``N1``, ``N2`` of the total stress
+        (:func:`sim.observables.stress.rheology`)."""
+        return rheology(self.total_stress, self.shear_rate)
+
 
 @dataclass(frozen=True)
 class RheologyResult:
     """Averaged rheology of a run (after the transient), with block-average standard errors.
 
-    All stresses in units ``eta gammadot`` (``eps E0^2`` when quiescent); ``contributions`` maps each
-    stress contribution name to its mean ``(eta_r, N1, N2)`` share; every mean is a time average.
+    All stresses in units ``eta gammadot_ref``; ``eta_r`` is ``Sigma_xy / gammadot`` per step
+    (:func:`sim.observables.stress.rheology`); ``contributions`` maps each stress contribution name to its
+    mean ``(eta_r, N1, N2)`` share; every mean is a time average.
     ``u_rms_dip`` and ``u_rms_shear`` are the RMS (over particles and time) of the dipolophoretic and of
     the shear-and-repulsion disturbance velocities (paper §3.4, Fig. 7). ``particle_pressure`` is
     ``-tr(Sigma^p)/3`` (:func:`sim.observables.stress.particle_pressure`), with its block standard error
@@ -133,7 +176,7 @@ class RheologyResult:
     n1_stderr: float
     n2: float
     n2_stderr: float
-    averaged_from_strain: float
+    averaged_from_time: float
     samples: int
     contributions: dict[str, tuple[float, float, float]]
     u_rms_dip: float = math.nan
@@ -146,8 +189,9 @@ class RheologyResult:
 class Simulation:
     """Stokesian dynamics of N spheres in a Lees–Edwards box under shear and an electric field.
 
-    The field (Mason number and direction) is part of the state: :meth:`set_field` changes it between
-    :meth:`advance` calls, and :meth:`snapshot` / :meth:`restore` carry it.
+    The field (Mason number at the reference rate and direction) and the shear rate are part of the
+    state: :meth:`set_field` and :meth:`set_shear_rate` change them between :meth:`advance` calls, and
+    :meth:`snapshot` / :meth:`restore` carry them.
 
     Args:
         config: the run's parameters (its ``mason_number`` and ``field_direction`` are the initial field).
@@ -171,15 +215,19 @@ class Simulation:
             positions = random_packing(
                 config.n_particles, config.volume_fraction, config.seed, min_gap=config.initial_min_gap
             )
-            state = SimulationState.initial(positions, config.mason_number, config.field_direction)
+            state = SimulationState.initial(
+                positions, config.mason_number, config.field_direction, config.shear_rate
+            )
         if state.positions.shape != (config.n_particles, 3):
             raise ValueError(
                 f"state has {state.positions.shape[0]} particles but config.n_particles={config.n_particles}"
             )
         self.state = state.copy()  # the caller's state object is never stepped
+        if math.isnan(self.state.shear_rate):  # a state that does not say: the configuration's rate
+            self.state.shear_rate = config.shear_rate
         self.keep_records = keep_records
         self._chunks: list[StepRecords] = []
-        self._params = step_parameters(config)
+        self._params = with_shear_rate(step_parameters(config), self.state.shear_rate)
         self._plan = run_ewald_plan(config)
 
     @property
@@ -198,8 +246,8 @@ class Simulation:
         """Set the electric field for the following steps.
 
         Args:
-            mason_number: ``Mn = eta gammadot / (eps E0^2)`` in (0, inf]; ``inf`` switches the field off
-                (not allowed in a quiescent run, where the field sets the units).
+            mason_number: ``Mn_ref = eta gammadot_ref / (eps E0^2)`` in (0, inf]; ``inf`` switches the
+                field off (not allowed while the shear rate is 0: nothing would drive the suspension).
             direction: field direction (three finite numbers, not all zero; normalised here); None keeps
                 the current direction. Both are validated by :class:`~sim.config.SimulationConfig`
                 (which also checks the box against the near-field cut-off when the field is on); nothing
@@ -216,14 +264,48 @@ class Simulation:
             self.config,
             mason_number=mason_number,
             field_direction=tuple(current),  # type: ignore[arg-type]
+            shear_rate=self.state.shear_rate,
+            strain=0.0,
+            transient_strain=None,
         )
         self.state.field_direction = np.array(checked.field_direction, dtype=np.float64)
         self.state.mason_number = float(checked.mason_number)
 
     @property
     def field(self) -> tuple[float, np.ndarray]:
-        """The field in force: ``(mason_number, direction)``."""
+        """The field in force: ``(mason_number, direction)`` (``mason_number`` at the reference rate)."""
         return self.state.mason_number, self.state.field_direction.copy()
+
+    # -- shear rate ------------------------------------------------------------------------------------
+    def set_shear_rate(self, shear_rate: float) -> None:
+        """Set the shear rate ``gammadot / gammadot_ref`` for the following steps.
+
+        The field keeps its ``Mn_ref`` (so ``U0`` and ``F0`` stay as they are, and the instantaneous Mason
+        number becomes ``shear_rate * Mn_ref``); the strain goes on accumulating from where it is, so the
+        Lees–Edwards images move on continuously.
+
+        Args:
+            shear_rate: finite and >= 0 (units ``gammadot_ref``); 0 stops the flow, which needs a field
+                (a finite Mason number). Nothing changes when it is refused.
+
+        Raises:
+            ValueError: naming ``shear_rate`` and its valid range.
+        """
+        if isinstance(shear_rate, np.floating | np.integer):
+            shear_rate = float(shear_rate)
+        check_shear_rate(shear_rate)
+        if shear_rate == 0.0 and math.isinf(self.state.mason_number):
+            raise ValueError(
+                "shear_rate = 0 needs a field: with the field off (mason_number = inf) nothing would drive "
+                "the suspension; set a finite Mason number first"
+            )
+        self.state.shear_rate = float(shear_rate)
+        self._params = with_shear_rate(self._params, self.state.shear_rate)
+
+    @property
+    def shear_rate(self) -> float:
+        """The shear rate in force (units ``gammadot_ref``)."""
+        return self.state.shear_rate
 
     # -- state -----------------------------------------------------------------------------------------
     def snapshot(self) -> SimulationState:
@@ -231,8 +313,12 @@ class Simulation:
         return self.state.copy()
 
     def restore(self, state: SimulationState, keep_records: bool = False) -> None:
-        """Continue from ``state`` (field included); the step records are cleared unless ``keep_records``."""
+        """Continue from ``state`` (field and shear rate included); the step records are cleared unless
+        ``keep_records``."""
         self.state = state.copy()
+        if math.isnan(self.state.shear_rate):
+            self.state.shear_rate = self.config.shear_rate
+        self._params = with_shear_rate(self._params, self.state.shear_rate)
         if not keep_records:
             self._chunks = []
 
@@ -242,11 +328,13 @@ class Simulation:
         field = field_parameters(self.config, s.mason_number, s.field_direction, self._plan)
         (
             clock,
+            strain,
             has_previous,
             stored,
             done,
             status,
             times,
+            strains,
             steps,
             stress,
             gaps,
@@ -261,6 +349,7 @@ class Simulation:
             s.previous_warm_start,
             s.stored_solutions,
             s.has_previous,
+            s.time,
             s.strain,
             s.step_history,
             s.displacement,
@@ -270,7 +359,7 @@ class Simulation:
             field,
         )
         chunk = StepRecords(
-            times[:done].copy(),
+            strains[:done].copy(),
             steps[:done].copy(),
             stress[:done].copy(),
             gaps[:done].copy(),
@@ -279,15 +368,20 @@ class Simulation:
             rms_dip[:done].copy(),
             rms_shear[:done].copy(),
             np.full(done, s.mason_number),
+            times[:done].copy(),
+            np.full(done, s.shear_rate),
         )
         if self.keep_records:
             self._chunks.append(chunk)
-        s.strain = clock
+        s.time = clock
+        s.strain = strain
         s.has_previous = has_previous
         s.stored_solutions = stored
         s.step += done
         if status != STATUS_OK:
-            raise SimulationError(f"step {s.step} (strain {s.strain:.4f}): {STATUS_MESSAGES[status]}")
+            raise SimulationError(
+                f"step {s.step} (time {s.time:.4f}, strain {s.strain:.4f}): {STATUS_MESSAGES[status]}"
+            )
         return chunk
 
     def advance(self, n_steps: int) -> StepRecords:
@@ -298,42 +392,43 @@ class Simulation:
 
     def advance_to(
         self,
-        strain: float,
+        time: float,
         chunk_steps: int = 200,
         on_chunk: Callable[[Simulation], None] | None = None,
     ) -> StepRecords:
-        """Step until the clock reaches ``strain`` (the first step that gets there or beyond ends it).
+        """Step until the clock reaches ``time`` (the first step that gets there or beyond ends it).
 
-        Steps adapt, so the clock may pass ``strain`` by less than one step; stopping there and calling
+        ``time`` is the clock (units ``1/gammadot_ref``; it equals the strain at the reference rate).
+        Steps adapt, so the clock may pass ``time`` by less than one step; stopping there and calling
         again continues the same trajectory bit for bit. Returns the records of these steps.
         """
-        if not math.isfinite(strain):
-            raise ValueError(f"strain must be finite, got {strain!r}")
+        if not math.isfinite(time):
+            raise ValueError(f"time must be finite, got {time!r}")
         if isinstance(chunk_steps, bool) or int(chunk_steps) != chunk_steps or chunk_steps < 1:
             raise ValueError(f"chunk_steps must be an integer >= 1, got {chunk_steps!r}")
         parts = []
-        while self.state.strain < stop_time(float(strain), self.config.time_step):
-            parts.append(self._step(int(chunk_steps), float(strain)))
+        while self.state.time < stop_time(float(time), self.config.time_step):
+            parts.append(self._step(int(chunk_steps), float(time)))
             if on_chunk is not None:
                 on_chunk(self)
         return StepRecords.concatenate(parts)
 
     # -- results ---------------------------------------------------------------------------------------
-    def rheology(self, from_strain: float | None = None) -> RheologyResult:
-        """Time averages of ``eta_r``, ``N1``, ``N2`` over samples at strain >= ``from_strain``.
+    def rheology(self, from_time: float | None = None) -> RheologyResult:
+        """Time averages of ``eta_r``, ``N1``, ``N2`` over samples at clock >= ``from_time``.
 
-        ``from_strain`` defaults to the configured transient.
+        ``from_time`` defaults to the configured transient (:attr:`SimulationConfig.transient_time`).
         """
-        start = self.config.transient if from_strain is None else from_strain
+        start = self.config.transient_time if from_time is None else from_time
         return summarise(self.records, start, self.config.n_blocks)
 
 
-def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> RheologyResult:
-    """Time-averaged rheology of ``records`` from ``from_strain`` on, with block standard errors."""
-    selected = records.select(records.strain >= from_strain - 1e-12)
+def summarise(records: StepRecords, from_time: float, n_blocks: int = 10) -> RheologyResult:
+    """Time-averaged rheology of ``records`` from the clock ``from_time`` on, with block standard errors."""
+    selected = records.select(records.time >= from_time - 1e-12)
     weights = selected.time_step
     stress = selected.stress
-    eta, n1, n2 = rheology(stress.sum(axis=1))
+    eta, n1, n2 = rheology(stress.sum(axis=1), selected.shear_rate)
     b_eta = block_average(eta, n_blocks, weights)
     b_n1 = block_average(n1, n_blocks, weights)
     b_n2 = block_average(n2, n_blocks, weights)
@@ -342,7 +437,7 @@ def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> R
     contributions: dict[str, tuple[float, float, float]] = {}
     total_weight = float(weights.sum())
     for index, name in enumerate(STRESS_CONTRIBUTIONS):
-        e, a, b = rheology(stress[:, index])
+        e, a, b = rheology(stress[:, index], selected.shear_rate)
         if e.size:
             contributions[name] = tuple(  # type: ignore[assignment]
                 float(np.sum(weights * x) / total_weight) for x in (e, a, b)
@@ -363,7 +458,7 @@ def summarise(records: StepRecords, from_strain: float, n_blocks: int = 10) -> R
         b_n1.stderr,
         b_n2.mean,
         b_n2.stderr,
-        float(from_strain),
+        float(from_time),
         int(eta.size),
         contributions,
         u_dip,

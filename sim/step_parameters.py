@@ -5,15 +5,18 @@ kernel reads ``params.lubrication_cutoff`` rather than its 11th argument, and sw
 same type cannot go unnoticed by a reader (an end-to-end test through :class:`sim.Simulation` also checks
 the mapping against independent numbers).
 
-* :class:`StepParameters`: everything fixed for a run (box, lubrication, repulsion, solver, overlap
-  removal, step-size control), built by :func:`step_parameters` from a
-  :class:`~sim.config.SimulationConfig`.
+* :class:`StepParameters`: the box, lubrication, repulsion, solver, overlap removal and step-size
+  control, fixed for a run, and the shear rate, which may change between ``advance`` calls
+  (:meth:`sim.Simulation.set_shear_rate`: :func:`with_shear_rate`); built by :func:`step_parameters`
+  from a :class:`~sim.config.SimulationConfig`.
 * :class:`FieldParameters`: the electric field, which may change between ``advance`` calls
   (:meth:`sim.Simulation.set_field`), built by :func:`field_parameters`.
 
-Units (``physics.md`` §1): ``a = eta = 1``; sheared runs have ``gammadot = 1`` (time is strain, stress
-``eta gammadot``) and the dipolophoretic velocity scale ``U0 = a gammadot / Mn``; quiescent runs
-(``shear_rate = 0``) measure time in ``a / U0`` and stress in ``eps E0^2``, i.e. ``U0 = 1``.
+Units (``docs/units.md``): ``a = eta = 1`` and the reference shear rate ``gammadot_ref = 1``: time is in
+``1/gammadot_ref``, stress in ``eta gammadot_ref``; the field is given by its Mason number at the
+reference rate ``Mn_ref``, so the dipolophoretic velocity scale is ``U0 = a gammadot_ref / Mn_ref`` at
+any shear rate (quiescent runs included), and the instantaneous Mason number is
+``(gammadot / gammadot_ref) Mn_ref``.
 """
 
 from __future__ import annotations
@@ -58,11 +61,12 @@ class StepParameters(NamedTuple):
 
     Attributes:
         box_length: cube side ``L`` (units a).
-        shear_rate: 1 (sheared) or 0 (quiescent); multiplies ``u_inf`` and ``E_inf`` and the
-            Lees–Edwards offset rate.
+        shear_rate: ``gammadot / gammadot_ref`` in force (>= 0; 0 is quiescent); multiplies ``u_inf``
+            and ``E_inf`` and the Lees–Edwards offset rate.
         lubrication_cutoff: gap below which pair lubrication acts (units a).
         lubrication_regularisation: ``delta`` in ``xi -> xi + delta`` (units a).
-        repulsion_scale: ``F0 = 6 pi eta a^2 gammadot / gammadot*`` (paper eq. 2.7).
+        repulsion_scale: ``F0 = 6 pi eta a^2 gammadot_ref / gammadot*`` (paper eq. 2.7), a material
+            constant: it does not follow the shear rate.
         repulsion_range: ``sigma`` (units a).
         solver_tolerance: relative residual of the resistance solve.
         solver_max_iterations: PCG iteration cap.
@@ -94,8 +98,8 @@ class FieldParameters(NamedTuple):
     """The electric field seen by the compiled step.
 
     Attributes:
-        strength: ``U0`` in simulation units (``1/Mn`` sheared, ``1`` quiescent), which is also
-            ``eps E0^2`` in stress units; 0 means the field is off.
+        strength: ``U0 = 1/Mn_ref`` in simulation units, which is also ``eps E0^2`` in stress units
+            ``eta gammadot_ref``; 0 means the field is off.
         direction: (3,) float64 unit vector ``e``.
         icep_weight: 1 if induced-charge electrophoresis acts, else 0.
         dep_weight: 1 if dielectrophoresis acts, else 0.
@@ -137,15 +141,18 @@ def step_parameters(config: SimulationConfig) -> StepParameters:
     )
 
 
-def field_strength(mason_number: float, shear_rate: float) -> float:
-    """Dipolophoretic velocity scale ``U0`` in simulation units (0 when the field is off).
-
-    Sheared runs: ``U0 = a gammadot / Mn`` (``physics.md`` §1). Quiescent runs: ``U0 = 1`` (it is the
-    unit of velocity) for any finite ``Mn``.
-    """
+def field_strength(mason_number: float) -> float:
+    """Dipolophoretic velocity scale ``U0 = a gammadot_ref / Mn_ref`` in simulation units (0 when the field
+    is off), the same at every shear rate (``docs/units.md``); a quiescent run at ``Mn_ref = 1`` thus has
+    ``U0 = 1``, the unit quiescent results have always been given in."""
     if math.isinf(mason_number):
         return 0.0
-    return 1.0 / mason_number if shear_rate > 0.0 else 1.0
+    return 1.0 / mason_number
+
+
+def with_shear_rate(params: StepParameters, shear_rate: float) -> StepParameters:
+    """``params`` with another shear rate (``gammadot / gammadot_ref``, >= 0); nothing else changes."""
+    return params._replace(shear_rate=float(shear_rate))
 
 
 def field_parameters(
@@ -154,13 +161,13 @@ def field_parameters(
     """The field ``E0 e`` with ``Mn = eta gammadot / (eps E0^2)`` for the compiled step.
 
     Args:
-        config: the run (mechanism and shear rate).
-        mason_number: current Mason number, in (0, inf] (``inf``: field off).
+        config: the run (mechanism and near-field model).
+        mason_number: current Mason number at the reference rate ``Mn_ref``, in (0, inf] (``inf``: off).
         direction: (3,) unit field direction.
         plan: the run's Ewald plan (:func:`sim.dipolophoresis.ewald.ewald_plan`).
     """
     return FieldParameters(
-        strength=field_strength(mason_number, config.shear_rate),
+        strength=field_strength(mason_number),
         direction=np.ascontiguousarray(direction, dtype=np.float64),
         icep_weight=1.0 if config.mechanism in ("dip", "icep") else 0.0,
         dep_weight=1.0 if config.mechanism in ("dip", "dep") else 0.0,

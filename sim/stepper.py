@@ -25,8 +25,10 @@ the state's ``displacement`` (:func:`sim.observables.diffusion.accumulate_displa
 feed back on the dynamics). Everything is ``@njit``; :func:`advance` loops over many steps without
 returning to Python.
 
-Time: the clock ``t`` is strain in sheared runs (``gammadot = 1``) and ``t U0 / a`` in quiescent runs;
-the accumulated strain, which sets the Lees–Edwards offset, is ``shear_rate * t``.
+Time and strain: the clock ``t`` is in units ``1/gammadot_ref``; the shear rate ``gammadot`` (in units
+``gammadot_ref``, ``params.shear_rate``) is constant within one :func:`advance` call and may change between
+calls, so the accumulated strain ``gamma = int gammadot dt``, which sets the Lees–Edwards offset, is carried
+beside the clock and advanced by ``gammadot dt`` per step (``docs/units.md``).
 
 References:
     Mirfendereski, S. & Park, J. S. (2024) J. Fluid Mech., §2.1–2.4.
@@ -266,6 +268,7 @@ def advance(
     stored_solutions: int,
     has_previous: bool,
     time: float,
+    strain: float,
     step_history: np.ndarray,
     displacement: np.ndarray,
     max_steps: int,
@@ -277,7 +280,8 @@ def advance(
 
     ``positions``, ``previous_velocity`` (N, 3), ``warm_start``, ``previous_warm_start`` (N, 6, the last
     two disturbance solutions, of which ``stored_solutions`` are valid) and ``step_history`` (2,: the
-    last two step sizes) are updated in place; with ``time`` and ``has_previous`` they form the complete
+    last two step sizes) are updated in place; with ``time``, ``strain`` (the accumulated strain, advanced
+    by ``params.shear_rate * dt`` per step) and ``has_previous`` they form the complete
     dynamical state: the same state gives the same trajectory bit for bit, however the steps are split
     between calls. ``displacement`` (N, 3) accumulates each step's non-affine displacement in the
     unwrapped frame, overlap removal included (:func:`sim.observables.diffusion.accumulate_displacement`);
@@ -286,12 +290,14 @@ def advance(
     changes the trajectory). The PCG initial guess extrapolates the last two solutions linearly in time.
 
     Returns:
-        time, has_previous, stored_solutions, steps completed, status (``STATUS_*``), and per step
-        (valid up to the number completed): time at the start of the step (n,), step size (n,), stress
+        time, strain, has_previous, stored_solutions, steps completed, status (``STATUS_*``), and per step
+        (valid up to the number completed): time at the start of the step (n,), accumulated strain at the
+        start of the step (n,), step size (n,), stress
         (n, N_CONTRIBUTIONS, 3, 3) at the start of the step, smallest gap (n,), PCG iterations (n,),
         overlap-removal sweeps (n,), RMS of ``U^d`` (n,), RMS of the translational ``V'`` (n,).
     """
     time_series = np.zeros(max_steps)
+    strain_series = np.zeros(max_steps)
     dt_series = np.zeros(max_steps)
     stress_series = np.zeros((max_steps, N_CONTRIBUTIONS, 3, 3))
     gap_series = np.zeros(max_steps)
@@ -313,7 +319,6 @@ def advance(
                     guess[p, c] = warm_start[p, c] + ratio * (warm_start[p, c] - previous_warm_start[p, c])
         else:
             guess[:, :] = warm_start
-        strain = params.shear_rate * time
         velocity, disturbance, dip_velocity, stress, min_gap, iterations = evaluate(
             positions, strain, guess, params, field
         )
@@ -335,6 +340,7 @@ def advance(
         dt = choose_time_step(non_affine_max, step_history[0], has_previous, params)
 
         time_series[done] = time
+        strain_series[done] = strain
         dt_series[done] = dt
         stress_series[done] = stress
         gap_series[done] = min_gap
@@ -352,7 +358,8 @@ def advance(
         step_history[1] = step_history[0]
         step_history[0] = dt
         time += dt
-        offset = lees_edwards_offset(params.shear_rate * time, params.box_length)
+        strain += params.shear_rate * dt
+        offset = lees_edwards_offset(strain, params.box_length)
         crossings = wrap_positions(positions, params.box_length, offset)
         shift_crossed_velocities(velocity, crossings, params.box_length, params.shear_rate)
         sweeps, crossings = remove_overlaps(
@@ -371,11 +378,13 @@ def advance(
             break
     return (
         time,
+        strain,
         has_previous,
         stored_solutions,
         done,
         status,
         time_series,
+        strain_series,
         dt_series,
         stress_series,
         gap_series,

@@ -86,7 +86,8 @@ BAD_INPUTS = [
     (["--mason", "nan"], "argument --mason: must be in (0, inf], got 'nan'"),
     (["--mason", "big"], "argument --mason: must be a number in (0, inf] or 'inf', got 'big'"),
     (["--mason", "inf", "--shear-rate", "0"], "--mason must be finite when --shear-rate = 0"),
-    (["--shear-rate", "2"], "argument --shear-rate: must be 1 (sheared) or 0 (quiescent), got '2'"),
+    (["--shear-rate", "-2"], "argument --shear-rate: must be a finite number >= 0 (units of the reference"),
+    (["--shear-rate", "nan"], "argument --shear-rate: must be a finite number >= 0"),
     (["--mechanism", "both"], "argument --mechanism: invalid choice: 'both'"),
     (["--bogus"], "unrecognized arguments: --bogus"),  # with run's usage, not the top-level one
 ]

@@ -35,7 +35,7 @@ def _pair_history(
     pos = np.array([centre - 0.5 * r0 * d, centre + 0.5 * r0 * d])
     sim = Simulation(config, SimulationState.initial(pos, 1.0))
     separations, angles = [], []
-    while sim.state.strain < duration:
+    while sim.state.time < duration:
         sim.advance(20)
         sep = sim.state.positions[1] - sim.state.positions[0]
         r = np.linalg.norm(sep)

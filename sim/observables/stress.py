@@ -1,6 +1,7 @@
 """Bulk stress, its contributions, and rheological functions with block-average errors.
 
-The bulk stress of a suspension (Batchelor 1970; paper eqs 2.8–2.9), in units ``eta gammadot``::
+The bulk stress of a suspension (Batchelor 1970; paper eqs 2.8–2.9), in units ``eta gammadot_ref``
+(``docs/units.md``)::
 
     <Sigma> = -p_f I + 2 eta E_inf + <Sigma^p>,
     <Sigma^p> = -n <R_SU . (U - u_inf; Omega - omega_inf)> + n <R_SE : E_inf> + n <S^d> - n <x F^p>
@@ -20,14 +21,14 @@ contribution (the isotropic ``-p_f I`` is not computed; it cancels in ``N1`` and
 ``dep_stresslet``  stresslets induced by the DEP forces through the two-sphere mobility (near field only)
 ================== ================================================================================
 
-The four dipolophoresis terms are ``physics.md`` §4; they scale as ``eps E0^2 = eta gammadot / Mn``.
+The four dipolophoresis terms scale as ``eps E0^2 = eta gammadot_ref / Mn_ref``.
 
-Rheology (paper §2.4): ``eta_r = Sigma_xy / (eta gammadot)``, ``N1 = Sigma_xx - Sigma_yy``,
-``N2 = Sigma_yy - Sigma_zz``. Particle pressure (Jeffrey, Morris & Brady 1993; the quiescent
-dipolophoresis results of Mirfendereski & Park 2021): ``Pi = -tr(Sigma^p) / 3``. In this model only the
-virials carry a trace (``repulsion`` and ``dep_virial``: repulsive forces give ``Pi > 0``, attractive
-ones ``Pi < 0``); the stresslets are traceless (the resistance-function stresslets and ``S0`` are
-deviatoric by construction, the pair ICEP sum includes its Lorentz term), so ``Pi`` is the
+Rheology (paper §2.4): ``eta_r = Sigma_xy / (eta gammadot)`` at the shear rate in force, ``N1 = Sigma_xx
+- Sigma_yy``, ``N2 = Sigma_yy - Sigma_zz``. Particle pressure (Jeffrey, Morris & Brady 1993; the
+quiescent dipolophoresis results of Mirfendereski & Park 2021): ``Pi = -tr(Sigma^p) / 3``. In this model
+only the virials carry a trace (``repulsion`` and ``dep_virial``: repulsive forces give ``Pi > 0``,
+attractive ones ``Pi < 0``); the stresslets are traceless (the resistance-function stresslets and ``S0``
+are deviatoric by construction, the pair ICEP sum includes its Lorentz term), so ``Pi`` is the
 interparticle-force pressure, without the hydrodynamic part that the traces of ``R_SU``, ``R_SE`` would
 add in full Stokesian dynamics.
 
@@ -70,17 +71,28 @@ DIPOLOPHORESIS_CONTRIBUTIONS = (ICEP_ISOLATED, ICEP_PAIR, DEP_VIRIAL, DEP_STRESS
 N_CONTRIBUTIONS = len(STRESS_CONTRIBUTIONS)
 
 
-def rheology(stress: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rheology(
+    stress: np.ndarray, shear_rate: np.ndarray | float | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Relative viscosity and normal-stress differences of stress tensors.
 
     Args:
-        stress: (..., 3, 3) total stress in units ``eta gammadot`` (axes x flow, y gradient, z vorticity).
+        stress: (..., 3, 3) total stress in units ``eta gammadot_ref`` (axes x flow, y gradient, z
+            vorticity).
+        shear_rate: the shear rate ``gammadot / gammadot_ref`` of each tensor (broadcast against
+            ``stress.shape[:-2]``); None means the reference rate 1.
 
     Returns:
-        ``eta_r = S_xy``, ``N1 = S_xx - S_yy``, ``N2 = S_yy - S_zz``, each of shape ``stress.shape[:-2]``.
+        ``eta_r = S_xy / gammadot`` (``S_xy`` itself where the rate is 0: no shear, no viscosity; quiescent
+        results report the shear stress there), ``N1 = S_xx - S_yy``, ``N2 = S_yy - S_zz`` (in
+        ``eta gammadot_ref``), each of shape ``stress.shape[:-2]``.
     """
     stress = np.asarray(stress, dtype=float)
-    return stress[..., 0, 1], stress[..., 0, 0] - stress[..., 1, 1], stress[..., 1, 1] - stress[..., 2, 2]
+    shear_stress = stress[..., 0, 1]
+    if shear_rate is not None:
+        rate = np.broadcast_to(np.asarray(shear_rate, dtype=float), shear_stress.shape)
+        shear_stress = np.where(rate > 0.0, shear_stress / np.where(rate > 0.0, rate, 1.0), shear_stress)
+    return shear_stress, stress[..., 0, 0] - stress[..., 1, 1], stress[..., 1, 1] - stress[..., 2, 2]
 
 
 def particle_pressure(stress: np.ndarray) -> np.ndarray:
