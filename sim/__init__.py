@@ -31,8 +31,14 @@ from sim.run import run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
 from sim.state import SimulationState
 from sim.tasks import TaskFailure, parse_seeds, run_tasks
+from sim.variants import PiecewiseLinear, constant, follow, ramp, schedule_from_segments
 
 __all__ = [
+    "PiecewiseLinear",
+    "constant",
+    "follow",
+    "ramp",
+    "schedule_from_segments",
     "MECHANISMS",
     "NEAR_FIELD_MODELS",
     "STRESS_CONTRIBUTIONS",
