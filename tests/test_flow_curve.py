@@ -40,7 +40,8 @@ def test_holds_in_order_with_the_instantaneous_mason_number(tmp_path) -> None:
 
 def test_the_first_hold_is_a_plain_run_at_that_rate(tmp_path) -> None:
     """The hold's average is the time average of a plain Simulation at rate 0.5 over the second half."""
-    rows = run_flow_curve(FlowCurveSpec(CONFIG, (0.5,), strain_per_rate=0.02), tmp_path / "one", progress=False)
+    spec = FlowCurveSpec(CONFIG, (0.5,), strain_per_rate=0.02)
+    rows = run_flow_curve(spec, tmp_path / "one", progress=False)
     plain = Simulation(SimulationConfig(**{**CONFIG.to_dict(), "mason_number": 2.0, "shear_rate": 0.5}))
     records = plain.advance_to(0.04)
     half = 0.5 * float(records.time[-1] + records.time_step[-1])
