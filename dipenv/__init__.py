@@ -7,9 +7,14 @@ imports it too):
   action, 48 actions per episode);
 * ``dipenv/FieldVector-v0``: strength and direction;
 * ``dipenv/FieldMagnitudeTiny-v0``, ``dipenv/FieldVectorTiny-v0``: N = 32, 0.02 strain per action, 10
-  actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo.
+  actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo;
+* ``dipenv/ThickeningControl-v0``: field strength while the shear rate follows a schedule of holds and
+  ramps in [0.2, 5] gammadot_ref (the rate is observed); ``dipenv/ThickeningControlStressOnly-v0``: the
+  same with only the measured stresses and the microstructure observed; ``dipenv/ThickeningControlTiny-v0``
+  for tests and the demo.
 
-See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` for the full description.
+See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` and
+:class:`dipenv.envs.thickening_control.ThickeningControlEnv` for the full descriptions.
 """
 
 from __future__ import annotations
@@ -19,8 +24,17 @@ from typing import Any
 from gymnasium.envs.registration import register, registry
 
 from dipenv.envs.field_control import DEFAULT_EPISODE_STEPS, FieldMagnitudeEnv, FieldVectorEnv
+from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningControlStressOnlyEnv
 
-__all__ = ["ENV_IDS", "TINY_KWARGS", "FieldMagnitudeEnv", "FieldVectorEnv"]
+__all__ = [
+    "ENV_IDS",
+    "THICKENING_TINY_KWARGS",
+    "TINY_KWARGS",
+    "FieldMagnitudeEnv",
+    "FieldVectorEnv",
+    "ThickeningControlEnv",
+    "ThickeningControlStressOnlyEnv",
+]
 
 TINY_KWARGS: dict[str, Any] = {
     "n_particles": 32,
@@ -36,11 +50,33 @@ TINY_KWARGS: dict[str, Any] = {
 """Arguments of the tiny variants: the smallest box the exact near field allows at phi = 0.45 with a
 3 a cut-off, short intervals and episodes, a narrower Mn range (Mn = 0.05 costs 4x the steps of 0.2)."""
 
+THICKENING_TINY_KWARGS: dict[str, Any] = {
+    **{k: v for k, v in TINY_KWARGS.items() if k != "target_viscosity"},
+    "eta_cap": 7.0,
+    "hold_range": (0.04, 0.08),
+    "ramp_range": (0.02, 0.05),
+    "max_piece": 0.01,
+}
+"""The tiny thickening-control variant: the tiny box and intervals, with holds and ramps scaled to its
+0.2-time episodes."""
+
+_THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
     "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", DEFAULT_EPISODE_STEPS, {}),
     "dipenv/FieldVector-v0": ("FieldVectorEnv", DEFAULT_EPISODE_STEPS, {}),
     "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
     "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
+    "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", DEFAULT_EPISODE_STEPS, {}),
+    "dipenv/ThickeningControlStressOnly-v0": (
+        f"{_THICKENING}:ThickeningControlStressOnlyEnv",
+        DEFAULT_EPISODE_STEPS,
+        {},
+    ),
+    "dipenv/ThickeningControlTiny-v0": (
+        f"{_THICKENING}:ThickeningControlEnv",
+        THICKENING_TINY_KWARGS["episode_steps"],
+        THICKENING_TINY_KWARGS,
+    ),
 }
 
 ENV_IDS = tuple(_SPECS)
@@ -50,7 +86,7 @@ for _env_id, (_cls, _steps, _kwargs) in _SPECS.items():
     if _env_id not in registry:
         register(
             id=_env_id,
-            entry_point=f"dipenv.envs.field_control:{_cls}",
+            entry_point=_cls if ":" in _cls else f"dipenv.envs.field_control:{_cls}",
             max_episode_steps=_steps,
             kwargs=dict(_kwargs),
         )

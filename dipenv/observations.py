@@ -77,9 +77,11 @@ def observation_features(vector_field: bool) -> list[ObservationFeature]:
     return features
 
 
-def observation_bounds(vector_field: bool, history_length: int) -> tuple[np.ndarray, np.ndarray]:
-    """(low, high) float32 arrays of the full observation: the frame repeated ``history_length + 1`` times."""
-    features = observation_features(vector_field)
+def observation_bounds(
+    features: list[ObservationFeature], history_length: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) float32 arrays of the full observation: the frame of ``features`` repeated
+    ``history_length + 1`` times."""
     low = np.array([f.low for f in features], dtype=np.float32)
     high = np.array([f.high for f in features], dtype=np.float32)
     return np.tile(low, history_length + 1), np.tile(high, history_length + 1)

@@ -88,3 +88,44 @@ class ViscosityTargetReward:
             "reward_energy": 0.0,
             "reward_failure": float(penalty),
         }
+
+
+DEFAULT_VISCOSITY_CAP = {0.45: 6.5}
+"""Default ``eta_cap`` of the thickening-control reward by volume fraction: the low-viscosity plateau that
+constant fields reach in ``dipenv/FieldMagnitude-v0`` at phi = 0.45 (eta_r 6.15 +- 0.28 at Mn 0.5, 6.23 +-
+0.34 at Mn 1, 6.03 at Mn 0.8; ``results/open_loop/FieldMagnitude-v0``), plus about one standard error, so
+that a suspension held on the plateau pays no thickening penalty. Provisional: N = 64's plateau sits above
+N = 100's (issue 24's box-size study decides the environments' N, and with it this value)."""
+
+
+def default_viscosity_cap(volume_fraction: float) -> float:
+    """The tabulated default ``eta_cap`` for ``volume_fraction`` (within 1e-6); ``ValueError`` otherwise."""
+    for phi, cap in DEFAULT_VISCOSITY_CAP.items():
+        if abs(phi - volume_fraction) < 1e-6:
+            return cap
+    raise ValueError(
+        f"no default eta_cap for volume_fraction={volume_fraction}; tabulated: "
+        f"{sorted(DEFAULT_VISCOSITY_CAP)}; pass eta_cap explicitly"
+    )
+
+
+@dataclass(frozen=True)
+class ThickeningPenaltyReward(ViscosityTargetReward):
+    """``r = -(max(0, eta_r - eta_cap) + w_E <eps E0^2>)``: pay for thickening above a cap, and for field.
+
+    ``eta_r = Sigma_xy / (eta gammadot)`` averaged over the control interval at the rates in force,
+    ``<eps E0^2> = <1/Mn_ref>`` the field energy density in ``eta gammadot_ref`` (``docs/units.md``). The
+    control intervals are equal in time, so the episode return is the time integral of the penalty rate
+    divided by the interval. ``target_viscosity`` holds ``eta_cap`` (the shared environment code reports it
+    under that name and as ``eta_cap``).
+    """
+
+    def __call__(self, relative_viscosity: float, field_energy: float) -> tuple[float, dict[str, float]]:
+        """Reward of one interval and its terms (``reward_viscosity`` is the thickening term)."""
+        viscosity_term = min(0.0, self.target_viscosity - relative_viscosity)
+        energy_term = -self.energy_weight * field_energy
+        return float(viscosity_term + energy_term), {
+            "reward_viscosity": float(viscosity_term),
+            "reward_energy": float(energy_term),
+            "reward_failure": 0.0,
+        }

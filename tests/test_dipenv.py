@@ -54,6 +54,9 @@ def test_every_id_is_registered() -> None:
         "dipenv/FieldVector-v0",
         "dipenv/FieldMagnitudeTiny-v0",
         "dipenv/FieldVectorTiny-v0",
+        "dipenv/ThickeningControl-v0",
+        "dipenv/ThickeningControlStressOnly-v0",
+        "dipenv/ThickeningControlTiny-v0",
     }
     for env_id in dipenv.ENV_IDS:
         assert gym.spec(env_id).max_episode_steps is not None

@@ -79,7 +79,7 @@ def test_reward_terms() -> None:
 
 
 def test_observation_bounds_and_signed_log() -> None:
-    low, high = observation_bounds(True, 1)
+    low, high = observation_bounds(observation_features(True), 1)
     assert low.shape == (2 * len(observation_features(True)),) and np.all(low < high)
     assert signed_log(-9.0) == pytest.approx(-1.0) and signed_log(0.0) == 0.0
 

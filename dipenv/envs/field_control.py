@@ -30,6 +30,7 @@ from dipenv.actions import (
     validate_action,
 )
 from dipenv.observations import (
+    ObservationFeature,
     microstructure_features,
     observation_bounds,
     observation_features,
@@ -179,12 +180,11 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
 
         n_actions = 3 if self.vector_field else 1
         self.action_space = spaces.Box(-1.0, 1.0, shape=(n_actions,), dtype=np.float32)
-        self._obs_low, self._obs_high = observation_bounds(self.vector_field, history_length)
+        features = self.frame_features()
+        self._obs_low, self._obs_high = observation_bounds(features, history_length)
         self.observation_space = spaces.Box(self._obs_low, self._obs_high, dtype=np.float32)
         self.observation_labels = [
-            f"{f.name}[t-{lag}]" if lag else f.name
-            for lag in range(history_length + 1)
-            for f in observation_features(self.vector_field)
+            f"{f.name}[t-{lag}]" if lag else f.name for lag in range(history_length + 1) for f in features
         ]
 
         self._libraries: dict[float, StateLibrary] = {}
@@ -202,6 +202,10 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._last_info: dict[str, Any] = {}
 
     # -- configuration ---------------------------------------------------------------------------------------
+    def frame_features(self) -> list[ObservationFeature]:
+        """The labelled layout of one observation frame (:func:`dipenv.observations.observation_features`)."""
+        return observation_features(self.vector_field)
+
     def _reward_for(self, volume_fraction: float) -> ViscosityTargetReward:
         target = self.explicit_target
         if target is None:
@@ -302,12 +306,12 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         simulation.restore(start.state)
         simulation.set_field(math.inf, _Y)
         self._steps = 0
-        self._episode_start = simulation.state.strain
+        self._episode_start = simulation.state.time
         self._amplitude = 0.0
         self._mason = math.inf
         self._direction = _Y.copy()
         eta, n1, n2 = (float(x) for x in start.tail_average(self.control_interval))
-        frame = self._frame(eta, n1, n2)
+        frame = self._frame(eta, n1, n2, eta)  # pre-sheared at the reference rate: Sigma_xy = eta_r
         self._frames = [frame] * (self.history_length + 1)
         self._needs_reset = False
         info = {
@@ -350,7 +354,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             for k, mason in enumerate(masons):
                 simulation.set_field(mason, direction)
                 end = start + (k + 1) * self.control_interval / len(masons)
-                parts.append(simulation.advance_to(end))
+                parts.append(self._advance(simulation, end))
         except sim.SimulationError as error:
             failure = str(error)
         self._steps += 1
@@ -364,7 +368,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             "mason_number": mn_end,
             "field_direction": self._direction.copy(),
             "action_clipped": was_clipped,
-            "strain": simulation.state.strain - self._episode_start,
+            "strain": simulation.state.time - self._episode_start,  # time since the start; strain at rate 1
             "simulation_failed": False,
             "failure_message": "",
             "target_viscosity": self.reward_function.target_viscosity,
@@ -382,7 +386,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         eta, n1, n2, energy, extra = means
         reward, terms = self.reward_function(eta, energy)
         info.update(eta_r=eta, n1=n1, n2=n2, field_energy=energy, reward=reward, **terms, **extra)
-        frame = self._frame(eta, n1, n2)
+        frame = self._frame(eta, n1, n2, extra["shear_stress"])
         self._frames = [frame, *self._frames[:-1]]
         truncated = self._steps >= self.episode_steps
         self._needs_reset = truncated
@@ -402,7 +406,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._direction,
             self._amplitude,
             title=(
-                f"strain {self._simulation.state.strain - self._episode_start:.2f}  "
+                f"time {self._simulation.state.time - self._episode_start:.2f}  "
                 f"eta_r {self._last_info.get('eta_r', float('nan')):.2f}  "
                 f"Mn {self._mason:.3g}"
             ),
@@ -413,6 +417,10 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._start_cache.clear()
 
     # -- internals ------------------------------------------------------------------------------------------
+    def _advance(self, simulation: sim.Simulation, end_time: float) -> sim.StepRecords:
+        """Advance the episode's simulation to the clock ``end_time`` (the shear rate held as it is)."""
+        return simulation.advance_to(end_time)
+
     def _interval_means(
         self, parts: list[sim.StepRecords]
     ) -> tuple[float, float, float, float, dict[str, Any]] | None:
@@ -421,7 +429,8 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         if time_steps.size == 0:
             return None
         stress = np.concatenate([p.stress.sum(axis=1) for p in parts])
-        eta, n1, n2 = sim.rheology(stress)
+        rates = np.concatenate([p.shear_rate for p in parts])
+        eta, n1, n2 = sim.rheology(stress, rates)
         mason = np.concatenate([p.mason_number for p in parts])
         energy = np.array([field_energy(float(m)) for m in mason])
         w = time_steps / time_steps.sum()
@@ -431,6 +440,8 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         u_dip = np.concatenate([p.u_rms_dip for p in parts])
         u_shear = np.concatenate([p.u_rms_shear for p in parts])
         extra = {
+            "shear_stress": float(np.dot(w, stress[:, 0, 1])),
+            "shear_rate": float(np.dot(w, rates)),
             "sim_steps": int(time_steps.size),
             "solver_iterations": float(np.mean(np.concatenate([p.solver_iterations for p in parts]))),
             "overlap_sweeps": float(np.mean(np.concatenate([p.overlap_sweeps for p in parts]))),
@@ -440,7 +451,9 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         }
         return values[0], values[1], values[2], values[3], extra
 
-    def _frame(self, eta: float, n1: float, n2: float) -> np.ndarray:
+    def _frame(self, eta: float, n1: float, n2: float, shear_stress: float) -> np.ndarray:
+        """One observation frame from the interval means (``shear_stress``: ``Sigma_xy`` in
+        ``eta gammadot_ref``, unused here) and the end state."""
         simulation = self._simulation
         assert simulation is not None
         state = simulation.state

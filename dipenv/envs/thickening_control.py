@@ -1,0 +1,242 @@
+"""Gymnasium environments: suppress shear thickening while the shear rate changes.
+
+:class:`ThickeningControlEnv` (the rate is observed) and :class:`ThickeningControlStressOnlyEnv` (only the
+measured stresses and the microstructure: the agent must infer the operating point) share the machinery
+of :class:`dipenv.envs.field_control.FieldControlEnv`; what they add is a shear-rate schedule per episode
+(:mod:`dipenv.schedules`), followed by the simulator through :func:`sim.follow`, and the thickening
+reward (:class:`dipenv.rewards.ThickeningPenaltyReward`). Units: ``docs/units.md`` (time in
+``1/gammadot_ref``, stress in ``eta gammadot_ref``, the field as ``Mn_ref``).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+import sim
+from dipenv.envs.field_control import FieldControlEnv
+from dipenv.observations import ObservationFeature, observation_features, signed_log
+from dipenv.rewards import ThickeningPenaltyReward, ViscosityTargetReward, default_viscosity_cap
+from dipenv.schedules import (
+    FIXED_SPLITS,
+    HOLD_RANGE,
+    RAMP_RANGE,
+    RATE_RANGE,
+    draw_schedule,
+    fixed_schedules,
+    schedule_from_dict,
+    schedule_to_dict,
+)
+
+DEFAULT_MAX_PIECE = 0.05
+"""Longest stretch of a ramp held at one rate (time units): a 0.25 interval inside a ramp is followed in
+five rates, each the schedule's mean over its stretch (:func:`sim.follow`)."""
+
+RATE_FEATURE = ObservationFeature(
+    "log10_shear_rate", "log10(gammadot_ref)", -2.0, 2.0, "shear rate in force at the end of the interval"
+)
+SHEAR_STRESS_FEATURE = ObservationFeature(
+    "slog_shear_stress", "slog(eta gammadot_ref)", -6.0, 6.0, "interval-averaged shear stress Sigma_xy"
+)
+
+
+class ThickeningControlEnv(FieldControlEnv):
+    """## Description
+
+    The suspension of :class:`dipenv.envs.field_control.FieldMagnitudeEnv` (N spheres at phi in a
+    Lees–Edwards box, field along the velocity gradient ``y``) is sheared at a rate that changes as a
+    process's does: each episode follows a schedule of holds and ramps, log-uniform over
+    ``rate_range`` (default ``[0.2, 5] gammadot_ref``; holds of 1–4, ramps of 0.5–2 time units;
+    :mod:`dipenv.schedules`). At a fixed field the instantaneous Mason number ``Mn = rate x Mn_ref`` rises
+    with the rate, and the suspension shear-thickens (Mirfendereski & Park 2024, Fig. 3b). The agent sets
+    the field strength once per control interval (0.25 time units) to keep ``eta_r`` below a cap with as
+    little field energy as possible: a constant field sized for the highest rate wastes energy at low
+    rates.
+
+    ## Action Space
+
+    As ``FieldMagnitude-v0``: ``Box(-1, 1, (1,), float32)``; ``u < -0.9`` is off, ``u`` in ``[-0.9, 1]``
+    maps log-linearly to ``Mn_ref`` from 20 to 0.05 (:class:`dipenv.actions.FieldStrengthMapping`).
+
+    ## Observation Space
+
+    The frame of ``FieldMagnitude-v0`` (interval-averaged ``slog eta_r``, ``slog N1``, ``slog N2`` in
+    ``eta gammadot_ref``; fabric, contact number, angular g of the end state; the field in force) plus
+    ``log10_shear_rate`` (index 14: the rate in force at the end of the interval, range [-2, 2]).
+    ``observation_labels`` names every index; ``history_length`` stacks previous frames.
+
+    ## Rewards
+
+    ``r = -(max(0, eta_r - eta_cap) + w_E <eps E0^2>)`` per interval: ``eta_r = Sigma_xy/(eta gammadot)``
+    time-averaged over the interval at the rates in force, ``<eps E0^2> = <1/Mn_ref>`` the field energy
+    density (``eta gammadot_ref``). Default ``eta_cap``: :data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP` (6.5
+    at phi = 0.45, the constant fields' low-viscosity plateau), ``w_E = 1``. ``info`` holds every term
+    and ``eta_r``, ``n1``, ``n2``, ``shear_stress``, ``shear_rate`` (interval mean), ``shear_rate_end``,
+    ``instantaneous_mason_number`` (interval mean of rate x Mn_ref), ``mason_number`` (``Mn_ref``),
+    ``field_energy``, ``eta_cap``, ``time`` (since the episode start) and the simulator's step statistics.
+
+    ## Starting State
+
+    A pre-sheared state of the start-state library, as ``FieldMagnitude-v0``, field off, the rate set
+    to the schedule's first value. Training episodes draw their schedule with ``self.np_random``; the
+    validation and test splits pair start state ``k`` with fixed schedule ``k``
+    (:func:`dipenv.schedules.fixed_schedules`), so every controller meets the same episodes.
+    ``reset(options={"schedule": {"times": [...], "rates": [...]}})`` runs a schedule of your own (rates
+    > 0, times from the episode start).
+
+    ## Episode End
+
+    Truncation after ``episode_steps`` (48 = 12 time units); termination on a simulator failure, as
+    ``FieldMagnitude-v0``.
+
+    ## Arguments
+
+    Those of :class:`dipenv.envs.field_control.FieldControlEnv` (no actuator lag here), plus ``eta_cap``,
+    ``rate_range``, ``hold_range``, ``ramp_range`` and ``max_piece`` (longest stretch of a ramp held at
+    one rate, 0.05 time units: a ramp is followed as a staircase at the ramp's mean over each stretch).
+
+    ## Version History
+
+    * v0: initial version (2026-12-02).
+    """
+
+    rate_observed: ClassVar[bool] = True
+
+    def __init__(
+        self,
+        *args: Any,
+        eta_cap: float | None = None,
+        rate_range: tuple[float, float] = RATE_RANGE,
+        hold_range: tuple[float, float] = HOLD_RANGE,
+        ramp_range: tuple[float, float] = RAMP_RANGE,
+        max_piece: float = DEFAULT_MAX_PIECE,
+        **kwargs: Any,
+    ) -> None:
+        if kwargs.get("actuator_time_constant", 0.0) != 0.0:
+            raise ValueError(
+                "actuator_time_constant must be 0 in the thickening-control environments (no actuator lag), "
+                f"got {kwargs['actuator_time_constant']!r}"
+            )
+        if "target_viscosity" in kwargs:
+            raise ValueError("the thickening-control environments take eta_cap, not target_viscosity")
+        self.explicit_cap = eta_cap
+        self.rate_range = tuple(float(x) for x in rate_range)
+        self.hold_range = tuple(float(x) for x in hold_range)
+        self.ramp_range = tuple(float(x) for x in ramp_range)
+        if not (math.isfinite(max_piece) and max_piece > 0.0):
+            raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
+        self.max_piece = float(max_piece)
+        super().__init__(*args, **kwargs)
+        # draw once now, so that bad ranges are refused at make, not at the first reset
+        draw_schedule(np.random.default_rng(0), self.episode_duration, rate_range, hold_range, ramp_range)
+        self._schedule = sim.constant(1.0)
+
+    @property
+    def episode_duration(self) -> float:
+        """Time an episode lasts: ``episode_steps * control_interval``."""
+        return self.episode_steps * self.control_interval
+
+    # -- configuration ---------------------------------------------------------------------------------------
+    def frame_features(self) -> list[ObservationFeature]:
+        features = observation_features(False)
+        if self.rate_observed:
+            return [*features, RATE_FEATURE]
+        return [SHEAR_STRESS_FEATURE, *features[1:]]
+
+    def _reward_for(self, volume_fraction: float) -> ViscosityTargetReward:
+        cap = self.explicit_cap if self.explicit_cap is not None else default_viscosity_cap(volume_fraction)
+        return ThickeningPenaltyReward(float(cap), self.energy_weight, self.failure_penalty)
+
+    def settings(self) -> dict[str, Any]:
+        settings = super().settings()
+        settings["schedule"] = {
+            "rate_range": list(self.rate_range),
+            "hold_range": list(self.hold_range),
+            "ramp_range": list(self.ramp_range),
+            "max_piece": self.max_piece,
+        }
+        settings["reward"]["eta_cap"] = settings["reward"].pop("target_viscosity")
+        settings["observation"] = [f.name for f in self.frame_features()]
+        return settings
+
+    def fixed_schedule(self, split: str, index: int) -> sim.PiecewiseLinear:
+        """Schedule ``index`` of a validation or test split: the shipped one when this env has the default
+        schedule parameters and episode duration, else drawn from the same seed with this env's."""
+        count, seed = FIXED_SPLITS[split]
+        defaults = (self.rate_range, self.hold_range, self.ramp_range, self.episode_duration) == (
+            RATE_RANGE, HOLD_RANGE, RAMP_RANGE, 12.0
+        )
+        if defaults and index < count:
+            return fixed_schedules(split)[index]
+        rng = np.random.default_rng(seed + index)
+        return draw_schedule(rng, self.episode_duration, self.rate_range, self.hold_range, self.ramp_range)
+
+    # -- Gymnasium API ---------------------------------------------------------------------------------------
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[np.ndarray, dict[str, Any]]:
+        """As :meth:`FieldControlEnv.reset`, with the option ``schedule`` (see the class docstring)."""
+        options = dict(options or {})
+        own = options.pop("schedule", None)
+        schedule = None if own is None else schedule_from_dict(own)
+        _, info = super().reset(seed=seed, options=options)
+        if schedule is None:
+            if info["split"] == "train":
+                schedule = draw_schedule(
+                    self.np_random, self.episode_duration, self.rate_range, self.hold_range, self.ramp_range
+                )
+            else:
+                schedule = self.fixed_schedule(info["split"], info["index"])
+        self._schedule = schedule
+        simulation = self._simulation
+        assert simulation is not None
+        simulation.set_shear_rate(schedule(0.0))
+        eta = info["eta_r"]
+        self._frames = [self._frame(eta, info["n1"], info["n2"], eta)] * (self.history_length + 1)
+        info.update(
+            schedule=schedule_to_dict(schedule),
+            shear_rate=schedule(0.0),
+            eta_cap=self.reward_function.target_viscosity,
+            time=0.0,
+        )
+        self._last_info = info
+        return self._observation(), dict(info)
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """Hold the field for one interval while the rate follows the episode's schedule."""
+        observation, reward, terminated, truncated, info = super().step(action)
+        simulation = self._simulation
+        assert simulation is not None
+        rate = info.get("shear_rate", math.nan)
+        mason = info["mason_number"]
+        info.update(
+            shear_rate_end=simulation.shear_rate,
+            instantaneous_mason_number=math.inf if math.isinf(mason) else rate * mason,
+            eta_cap=self.reward_function.target_viscosity,
+            time=simulation.state.time - self._episode_start,
+        )
+        return observation, reward, terminated, truncated, info
+
+    # -- internals ------------------------------------------------------------------------------------------
+    def _advance(self, simulation: sim.Simulation, end_time: float) -> sim.StepRecords:
+        return sim.follow(simulation, end_time, self._schedule, self.max_piece, origin=self._episode_start)
+
+    def _frame(self, eta: float, n1: float, n2: float, shear_stress: float) -> np.ndarray:
+        frame = super()._frame(eta, n1, n2, shear_stress)
+        if self.rate_observed:
+            simulation = self._simulation
+            assert simulation is not None
+            return np.append(frame, math.log10(simulation.shear_rate))
+        frame[0] = signed_log(shear_stress)
+        return frame
+
+
+class ThickeningControlStressOnlyEnv(ThickeningControlEnv):
+    """As :class:`ThickeningControlEnv`, but the observation holds only what a device without a flow meter
+    measures: the interval-averaged shear stress ``Sigma_xy`` (index 0, ``slog`` of ``eta gammadot_ref``),
+    ``N1``, ``N2``, the microstructure and the field in force; neither the rate nor ``eta_r``. The agent
+    must infer the operating point (``history_length`` stacks previous frames for that)."""
+
+    rate_observed = False
