@@ -7,6 +7,13 @@ averages):
 * ``energy_second_half``: time-averaged field energy ``<eps E0^2> = <1/Mn>`` over the same half (units
   eta gammadot; the field energy per unit volume per unit strain);
 * ``energy_mean``: the same over the whole episode; ``return``: the undiscounted sum of rewards.
+
+Episodes of the thickening-control environments (``info`` holds ``eta_cap``; the rate follows a schedule,
+so there is no steady half) add whole-episode metrics:
+
+* ``time_above_cap``: fraction of the intervals whose ``eta_r`` exceeds ``eta_cap``;
+* ``excess_viscosity``: time-averaged ``max(0, eta_r - eta_cap)`` (the thickening penalty per unit time);
+* ``eta_mean``: time-averaged ``eta_r``.
 """
 
 from __future__ import annotations
@@ -50,6 +57,9 @@ class EpisodeTrace:
     n1: list[float] = field(default_factory=list)
     n2: list[float] = field(default_factory=list)
     reward: list[float] = field(default_factory=list)
+    time: list[float] = field(default_factory=list)
+    shear_rate: list[float] = field(default_factory=list)
+    eta_cap: float = math.nan
     failed: bool = False
     library_key: str = ""
 
@@ -58,7 +68,7 @@ class EpisodeTrace:
         n = len(self.eta_r)
         half = slice(n // 2, n)
         ok = n > 0 and not self.failed
-        return {
+        out = {
             "split": self.split,
             "index": self.index,
             "steps": n,
@@ -68,6 +78,12 @@ class EpisodeTrace:
             "energy_mean": float(np.mean(self.field_energy)) if ok else math.nan,
             "return": float(np.sum(self.reward)),
         }
+        if math.isfinite(self.eta_cap):
+            eta = np.asarray(self.eta_r, dtype=float)
+            out["time_above_cap"] = float(np.mean(eta > self.eta_cap)) if ok else math.nan
+            out["excess_viscosity"] = float(np.mean(np.maximum(eta - self.eta_cap, 0.0))) if ok else math.nan
+            out["eta_mean"] = float(np.mean(eta)) if ok else math.nan
+        return out
 
     def to_dict(self) -> dict[str, Any]:
         out = asdict(self)
@@ -76,9 +92,14 @@ class EpisodeTrace:
 
 
 def run_episode(env: gym.Env, policy: Policy, split: str, index: int, seed: int = 0) -> EpisodeTrace:
-    """Run ``policy`` from start state ``index`` of ``split`` until the episode ends."""
+    """Run ``policy`` from start state ``index`` of ``split`` until the episode ends (a policy with a
+    ``reset()`` method, such as a feedback controller of :mod:`agents.controllers`, is reset first)."""
     obs, info = env.reset(seed=seed, options={"split": split, "index": index})
     trace = EpisodeTrace(split=split, index=index, library_key=str(info.get("library_key", "")))
+    trace.eta_cap = float(info.get("eta_cap", math.nan))
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset()
     done = False
     while not done:
         action = np.asarray(policy(obs), dtype=np.float32)
@@ -96,6 +117,9 @@ def run_episode(env: gym.Env, policy: Policy, split: str, index: int, seed: int 
         trace.n1.append(float(info["n1"]))
         trace.n2.append(float(info["n2"]))
         trace.reward.append(float(reward))
+        if "eta_cap" in info:  # the thickening-control environments
+            trace.time.append(float(info["time"]))
+            trace.shear_rate.append(float(info["shear_rate"]))
     return trace
 
 

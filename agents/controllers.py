@@ -1,0 +1,397 @@
+"""Hand-made controllers for the thickening-control environments, tuned on validation, run on test.
+
+    python -m agents.controllers --env dipenv/ThickeningControl-v0 --controller feedforward --out DIR
+        [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
+        [--tune-episodes N] [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS]
+
+Two controllers, each a policy ``obs -> action`` over the raw observation of a
+:class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
+not matter):
+
+* :class:`FeedForwardController` ("feedforward"): the field follows the known shear rate,
+  ``eps E0^2 ∝ gammadot``, i.e. ``Mn_ref = Mn* / gammadot`` so that the instantaneous Mason number
+  ``Mn = gammadot Mn_ref`` is held at ``Mn*`` (``docs/units.md``). The rate is the observed one at the end
+  of the previous interval (``log10_shear_rate``), so the controller lags a ramp by one interval. It needs
+  the rate in the observation: ``ThickeningControl-v0`` only.
+* :class:`PIController` ("pi"): proportional–integral feedback on the log of the measured interval-averaged
+  ``eta_r`` (``ThickeningControl-v0``) or shear stress ``Sigma_xy`` (``ThickeningControlStressOnly-v0``)
+  against a setpoint, acting on the strength action ``u`` (``u = 1`` strongest field, ``u < -0.9`` off):
+  ``e_k = log10(y_k / y*)``, ``u_k = u_0 + K_p e_k + K_i sum_{j<=k} e_j`` with the integral frozen while
+  ``u`` is saturated in the direction of the error (anti-windup; Åström & Murray, *Feedback Systems*,
+  2008, §10.4).
+
+Both saturate at the env's field range (``[Mn_min, Mn_max]`` or off): that is the actuator's limit, not a
+clamp of the user's input.
+
+The command runs every point of ``--grid`` (the Cartesian product of the listed values; defaults per
+controller in :data:`DEFAULT_GRIDS`) on the first ``--tune-episodes`` states of ``--tune-split``, picks
+the point with the highest mean return, and plays it on ``--split``. Output, in the layout of
+``agents.open_loop`` so that ``agents.evaluate --controllers DIR`` reads it as a row: ``DIR/tuning/``
+(one JSON per grid point), ``DIR/tuning.csv``, ``DIR/points/<label>.json`` (the tuned controller on the
+test split), ``DIR/controller.json`` and ``DIR/command.txt``. Points whose stored identity matches are
+reused, so a killed run resumes point by point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.open_loop import _finite, read_json, write_json
+from agents.rollout import make_env, run_episode
+from agents.tasks import run_tasks
+from agents.usage import json_object, usage_error
+
+PROG = "python -m agents.controllers"
+
+CONTROLLERS = ("feedforward", "pi")
+
+DEFAULT_GRIDS: dict[str, dict[str, list[float]]] = {
+    "feedforward": {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]},
+    "pi": {"setpoint": [4.0, 5.0, 6.0], "kp": [2.0, 6.0], "ki": [0.5, 2.0]},
+}
+"""Grids searched on the validation split when ``--grid`` is not given. ``mason_star`` spans the paper's
+thickening window (Mn 0.25–4, Fig. 3b). The PI setpoint is in the measured quantity's units: ``eta_r`` on
+``ThickeningControl-v0`` (below the default cap 6.5), ``Sigma_xy`` in ``eta gammadot_ref`` on the
+stress-only env (the same numbers: the schedules' rates are log-uniform around ``gammadot_ref``). The gains
+are in action units per decade of error."""
+
+
+def _index(unwrapped: Any, label: str) -> int:
+    labels = list(unwrapped.observation_labels)
+    if label not in labels:
+        raise ValueError(
+            f"the observation of {type(unwrapped).__name__} has no {label!r} "
+            f"(it holds {', '.join(l for l in labels if '[' not in l)})"
+        )
+    return labels.index(label)
+
+
+@dataclass
+class FeedForwardController:
+    """Hold the instantaneous Mason number at ``mason_star``: ``Mn_ref = mason_star / gammadot``.
+
+    Attributes:
+        mason_star: the instantaneous Mn to hold (> 0). ``Mn_ref`` outside the env's
+            ``[Mn_min, Mn_max]`` saturates there (its weakest and strongest field).
+    """
+
+    mason_star: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.mason_star) and self.mason_star > 0.0):
+            raise ValueError(f"mason_star must be finite and > 0, got {self.mason_star!r}")
+        self._rate_index = -1
+        self._mapping: Any = None
+
+    def bind(self, env: Any) -> FeedForwardController:
+        """Find the rate in ``env``'s observation; ``ValueError`` if the env does not observe it."""
+        unwrapped = env.unwrapped
+        self._rate_index = _index(unwrapped, "log10_shear_rate")
+        self._mapping = unwrapped.mapping
+        return self
+
+    def mason_for_rate(self, rate: float) -> float:
+        """``Mn_ref`` the controller sets at shear rate ``rate`` (saturated at the field range)."""
+        mapping = self._mapping
+        return min(max(self.mason_star / rate, mapping.mason_min), mapping.mason_max)
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if self._mapping is None:
+            raise RuntimeError("bind(env) the controller before use")
+        rate = 10.0 ** float(np.asarray(obs).reshape(-1)[self._rate_index])
+        return np.array([self._mapping.action_for(self.mason_for_rate(rate))], dtype=np.float32)
+
+
+@dataclass
+class PIController:
+    """PI feedback on ``log10`` of the measured ``eta_r`` or shear stress, acting on the strength action.
+
+    Attributes:
+        setpoint: target of the measured quantity (``eta_r``, or ``Sigma_xy`` in ``eta gammadot_ref``), > 0.
+        kp: proportional gain (action units per decade of error), >= 0.
+        ki: integral gain (action units per decade per interval), >= 0.
+        u0: action with zero error and zero integral (default 0: ``Mn_ref`` ~ 1 in the default mapping).
+    """
+
+    setpoint: float
+    kp: float
+    ki: float
+    u0: float = 0.0
+    integral: float = field(default=0.0, init=False)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.setpoint) and self.setpoint > 0.0):
+            raise ValueError(f"setpoint must be finite and > 0, got {self.setpoint!r}")
+        for name in ("kp", "ki"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value!r}")
+        if not (math.isfinite(self.u0) and -1.0 <= self.u0 <= 1.0):
+            raise ValueError(f"u0 must be in [-1, 1], got {self.u0!r}")
+        self._index = -1
+
+    def bind(self, env: Any) -> PIController:
+        """Measure ``eta_r`` where the env observes it, else the shear stress."""
+        unwrapped = env.unwrapped
+        labels = list(unwrapped.observation_labels)
+        self.measured = "slog_eta_r" if "slog_eta_r" in labels else "slog_shear_stress"
+        self._index = _index(unwrapped, self.measured)
+        return self
+
+    def reset(self) -> None:
+        self.integral = 0.0
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        if self._index < 0:
+            raise RuntimeError("bind(env) the controller before use")
+        slog = float(np.asarray(obs).reshape(-1)[self._index])
+        measured = math.copysign(10.0 ** abs(slog) - 1.0, slog)  # inverse of dipenv's signed log
+        error = math.log10(max(measured, 1e-6) / self.setpoint)
+        raw = self.u0 + self.kp * error + self.ki * (self.integral + error)
+        saturated = (raw > 1.0 and error > 0) or (raw < -1.0 and error < 0)
+        if not saturated:
+            self.integral += error
+        u = self.u0 + self.kp * error + self.ki * self.integral
+        return np.array([min(1.0, max(-1.0, u))], dtype=np.float32)
+
+
+def make_controller(kind: str, params: dict[str, float]) -> FeedForwardController | PIController:
+    """A controller of ``kind`` (one of :data:`CONTROLLERS`) with ``params``; ``ValueError`` naming a bad
+    kind or parameter."""
+    if kind == "feedforward":
+        return FeedForwardController(**params)
+    if kind == "pi":
+        return PIController(**params)
+    raise ValueError(f"controller must be one of {', '.join(CONTROLLERS)}, got {kind!r}")
+
+
+def point_label(kind: str, params: dict[str, float]) -> str:
+    return kind + "_" + "_".join(f"{k}{v:g}" for k, v in params.items())
+
+
+def run_point(payload: dict[str, Any]) -> dict[str, Any]:
+    """One controller over the first ``episodes`` states of a split (a task); reuses a stored record
+    with the same identity, else writes one."""
+    path = Path(payload["path"])
+    identity = _finite(payload["identity"])
+    if path.exists():
+        old = read_json(path)
+        if _finite(old.get("identity")) == identity:
+            return dict(old)
+    env = make_env(payload["env_id"], payload["env_kwargs"])
+    controller = make_controller(payload["controller"], payload["params"]).bind(env)
+    episodes = []
+    for index in range(payload["episodes"]):
+        trace = run_episode(env, controller, payload["split"], index)
+        episodes.append({**trace.summary(), "trace": trace.to_dict()})
+    env.close()
+    record = {
+        "identity": identity,
+        "label": payload["label"],
+        "controller": payload["controller"],
+        "params": payload["params"],
+        "mason_number": math.nan,
+        "direction": None,
+        "action": [],
+        "episodes": episodes,
+    }
+    write_json(path, record)
+    return record
+
+
+def parse_grid(kind: str, items: Sequence[str]) -> dict[str, list[float]]:
+    """``["name=v1,v2", ...]`` to ``{name: [v1, v2]}``; the default grid of ``kind`` where ``items`` is
+    empty; ``ValueError`` naming a malformed item or a parameter ``kind`` does not take."""
+    if not items:
+        return {k: list(v) for k, v in DEFAULT_GRIDS[kind].items()}
+    grid: dict[str, list[float]] = {}
+    allowed = set(DEFAULT_GRIDS[kind]) | ({"u0"} if kind == "pi" else set())
+    for item in items:
+        name, sep, values = item.partition("=")
+        name = name.strip()
+        if not sep or not values.strip():
+            raise ValueError(f"--grid takes name=v1,v2,..., got {item!r}")
+        if name not in allowed:
+            raise ValueError(f"--grid: {kind} takes {', '.join(sorted(allowed))}, not {name!r}")
+        try:
+            grid[name] = [float(v) for v in values.split(",")]
+        except ValueError:
+            raise ValueError(f"--grid {name}: numbers separated by commas, got {values!r}") from None
+    missing = set(DEFAULT_GRIDS[kind]) - set(grid)
+    for name in missing:
+        grid[name] = list(DEFAULT_GRIDS[kind][name])
+    return grid
+
+
+def grid_points(grid: dict[str, list[float]]) -> list[dict[str, float]]:
+    names = sorted(grid)
+    return [dict(zip(names, values, strict=True)) for values in itertools.product(*(grid[n] for n in names))]
+
+
+def mean_return(record: dict[str, Any]) -> float:
+    returns = [e["return"] for e in record["episodes"]]
+    return float(np.mean(returns)) if returns else -math.inf
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--env", default="dipenv/ThickeningControl-v0")
+    parser.add_argument("--controller", required=True, choices=CONTROLLERS)
+    parser.add_argument("--grid", nargs="*", default=[], help="name=v1,v2 ... (default: DEFAULT_GRIDS)")
+    parser.add_argument("--tune-split", default="validation")
+    parser.add_argument("--tune-episodes", type=int, default=None, help="default: the whole tuning split")
+    parser.add_argument("--split", default="test")
+    parser.add_argument("--episodes", type=int, default=None, help="default: the whole split")
+    parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
+    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--scheduler", default=None)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    args = build_parser().parse_args(argv)
+    if str(args.out) in ("", "."):
+        usage_error(PROG, "--out must name a folder for the results, got the current directory")
+    if args.workers < 1:
+        usage_error(PROG, f"--workers must be >= 1, got {args.workers}")
+    env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
+    try:
+        grid = parse_grid(args.controller, args.grid)
+        points = grid_points(grid)
+        for params in points:
+            make_controller(args.controller, params)
+    except ValueError as error:
+        usage_error(PROG, str(error))
+    try:
+        env = make_env(args.env, {**env_kwargs, "progress": False})
+    except Exception as error:  # gym's NameNotFound, a bad env argument
+        usage_error(PROG, f"--env/--env-kwargs: {error}")
+    unwrapped: Any = env.unwrapped
+    if not hasattr(unwrapped, "fixed_schedule"):
+        usage_error(PROG, f"--env {args.env} is not a thickening-control environment")
+    try:
+        make_controller(args.controller, points[0]).bind(env)
+    except ValueError as error:
+        usage_error(PROG, f"--controller {args.controller} on --env {args.env}: {error}")
+    sizes = unwrapped.split_sizes
+    counts = {}
+    for option, split, count in (
+        ("--tune-split", args.tune_split, args.tune_episodes),
+        ("--split", args.split, args.episodes),
+    ):
+        if split not in sizes:
+            usage_error(PROG, f"{option} must be one of {', '.join(sizes)}, got {split!r}")
+        n = sizes[split] if count is None else count
+        if not 1 <= n <= sizes[split]:
+            usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
+        counts[split, option] = n
+    key = unwrapped.library().key
+    settings = unwrapped.settings()
+    unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
+    env.close()
+    for folder in ("tuning", "points"):
+        (args.out / folder).mkdir(parents=True, exist_ok=True)
+    (args.out / "command.txt").write_text(
+        " ".join([sys.executable, "-m", "agents.controllers", *sys.argv[1:]]) + "\n"
+    )
+
+    def payload(params: dict[str, float], split: str, episodes: int, folder: str) -> dict[str, Any]:
+        label = point_label(args.controller, params)
+        return {
+            "env_id": args.env,
+            "env_kwargs": {**env_kwargs, "progress": False},
+            "controller": args.controller,
+            "params": params,
+            "split": split,
+            "episodes": episodes,
+            "label": label,
+            "path": str(args.out / folder / f"{label}.json"),
+            "identity": {
+                "env_id": args.env,
+                "env_kwargs": env_kwargs,
+                "env_settings": settings,
+                "library_key": key,
+                "controller": args.controller,
+                "params": params,
+                "split": split,
+                "episodes": episodes,
+            },
+        }
+
+    tune_n = counts[args.tune_split, "--tune-split"]
+    tuning = run_tasks(
+        run_point,
+        [payload(p, args.tune_split, tune_n, "tuning") for p in points],
+        workers=args.workers,
+        scheduler=args.scheduler,
+    )
+    lines = [",".join([*sorted(grid), "return", "time_above_cap", "excess_viscosity", "energy_mean"])]
+    for record in tuning:
+        eps = record["episodes"]
+        lines.append(
+            ",".join(
+                [f"{record['params'][k]:g}" for k in sorted(grid)]
+                + [
+                    f"{mean_return(record):.4f}",
+                    *(
+                        f"{np.nanmean([e.get(m, math.nan) for e in eps]):.4f}"
+                        for m in ("time_above_cap", "excess_viscosity", "energy_mean")
+                    ),
+                ]
+            )
+        )
+    (args.out / "tuning.csv").write_text("\n".join(lines) + "\n")
+    best = max(tuning, key=mean_return)
+    tuned = run_tasks(
+        run_point,
+        [payload(best["params"], args.split, counts[args.split, "--split"], "points")],
+        workers=1,
+        scheduler=args.scheduler,
+    )[0]
+    summary = {
+        "env_id": args.env,
+        "env_kwargs": env_kwargs,
+        "controller": args.controller,
+        "grid": grid,
+        "tune_split": args.tune_split,
+        "tune_episodes": tune_n,
+        "tuned_params": best["params"],
+        "tune_return": mean_return(best),
+        "split": args.split,
+        "label": tuned["label"],
+        "test_return": mean_return(tuned),
+        "library_key": key,
+    }
+    write_json(args.out / "controller.json", summary)
+    print("\n".join(lines))
+    print(
+        f"tuned on {tune_n} {args.tune_split} schedules: {tuned['label']} (return {mean_return(best):.2f}); "
+        f"on {args.split}: {mean_return(tuned):.2f}"
+    )
+    return summary
+
+
+__all__ = [
+    "CONTROLLERS",
+    "DEFAULT_GRIDS",
+    "FeedForwardController",
+    "PIController",
+    "make_controller",
+    "main",
+    "parse_grid",
+]
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,178 @@
+"""The hand-made thickening controllers (agents.controllers): feed-forward holds the instantaneous Mn, PI
+feedback with anti-windup, and the tune-then-test command."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import dipenv  # noqa: F401  (registers the ids)
+from agents import controllers
+from agents.controllers import FeedForwardController, PIController, parse_grid
+from dipenv.actions import FieldStrengthMapping
+
+TINY = "dipenv/ThickeningControlTiny-v0"
+
+
+def test_feedforward_holds_the_instantaneous_mason_number() -> None:
+    """Wherever the rate of an interval is the rate the controller read (the rate in force at the end of
+    the previous interval), ``info``'s instantaneous Mn = rate x Mn_ref equals ``mason_star``. Tolerance
+    1e-6 relative: the action is float32 (7 digits) and maps log-linearly onto Mn_ref over 2.6 decades.
+    Across the jump the controller lags by one interval (documented), and Mn is 2 / 0.5 = 4 times off."""
+    env = gym.make(TINY, progress=False)
+    controller = FeedForwardController(0.5).bind(env)
+    schedule = {"times": [0.0, 0.1, 0.1, 0.2], "rates": [2.0, 2.0, 0.5, 0.5]}
+    obs, info = env.reset(seed=0, options={"split": "test", "index": 0, "schedule": schedule})
+    read = info["shear_rate"]
+    held, lagged = [], []
+    for _ in range(10):
+        obs, _, terminated, truncated, info = env.step(controller(obs))
+        same = math.isclose(info["shear_rate"], read, rel_tol=1e-9)
+        (held if same else lagged).append(info["instantaneous_mason_number"])
+        read = info["shear_rate_end"]
+        if terminated or truncated:
+            break
+    assert len(held) == 9 and len(lagged) == 1
+    np.testing.assert_allclose(held, 0.5, rtol=1e-6)
+    np.testing.assert_allclose(lagged, 0.5 / 4, rtol=1e-6)
+    env.close()
+
+
+def test_feedforward_saturates_at_the_field_range_and_needs_the_rate() -> None:
+    mapping = FieldStrengthMapping(mason_min=0.05, mason_max=20.0)
+    controller = FeedForwardController(1.0)
+    controller._mapping = mapping  # as bind() sets it
+    assert controller.mason_for_rate(2.0) == 0.5
+    assert controller.mason_for_rate(100.0) == 0.05  # strongest field
+    assert controller.mason_for_rate(0.01) == 20.0  # weakest field
+    env = gym.make("dipenv/ThickeningControlStressOnly-v0", **dipenv.THICKENING_TINY_KWARGS, progress=False)
+    with pytest.raises(ValueError, match="log10_shear_rate"):
+        FeedForwardController(1.0).bind(env)
+    env.close()
+    with pytest.raises(ValueError, match="mason_star"):
+        FeedForwardController(0.0)
+
+
+def _pi(labels: list[str], **kwargs: float) -> PIController:
+    controller = PIController(**kwargs)  # type: ignore[arg-type]
+    return controller.bind(SimpleNamespace(unwrapped=SimpleNamespace(observation_labels=labels)))
+
+
+def _slog(x: float) -> float:
+    return math.copysign(math.log10(1.0 + abs(x)), x)
+
+
+def test_pi_law_and_anti_windup() -> None:
+    """u_k = u0 + Kp e_k + Ki sum e_j with e = log10(y / y*); the integral freezes while u is saturated in
+    the direction of the error, so the controller leaves saturation as soon as the error changes sign."""
+    pi = _pi(["slog_eta_r", "slog_n1"], setpoint=5.0, kp=0.4, ki=0.2)
+    assert pi.measured == "slog_eta_r"
+    obs = np.array([_slog(50.0), 0.0])  # one decade too viscous: e = 1
+    # u = 0.4 + 0.2 k for k = 1, 2, 3 (float32 actions: 1e-6), then saturated at 1 with the sum held at 3
+    for k, expected in enumerate([0.6, 0.8, 1.0], start=1):
+        assert float(pi(obs)[0]) == pytest.approx(expected, rel=1e-6), k
+    for _ in range(20):
+        assert float(pi(obs)[0]) == 1.0
+    assert pi.integral == pytest.approx(3.0, rel=1e-12)
+    below = np.array([_slog(0.5), 0.0])  # one decade below: e = -1, u = -0.4 + 0.2 (3 - 1) = 0
+    assert float(pi(below)[0]) == pytest.approx(0.0, abs=1e-6)
+    pi.reset()
+    assert pi.integral == 0.0
+    at_setpoint = np.array([_slog(5.0), 0.0])
+    assert float(pi(at_setpoint)[0]) == pytest.approx(0.0, abs=1e-6)
+
+
+def test_pi_measures_stress_on_the_stress_only_env_and_checks_gains() -> None:
+    pi = _pi(["slog_shear_stress", "slog_n1"], setpoint=5.0, kp=1.0, ki=0.0)
+    assert pi.measured == "slog_shear_stress"
+    for bad in ({"setpoint": 0.0}, {"kp": -1.0}, {"ki": math.nan}, {"u0": 2.0}):
+        with pytest.raises(ValueError, match=next(iter(bad))):
+            PIController(**{"setpoint": 5.0, "kp": 1.0, "ki": 1.0, **bad})
+
+
+def test_parse_grid() -> None:
+    assert parse_grid("feedforward", []) == {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]}
+    grid = parse_grid("pi", ["kp=1,2"])
+    assert grid["kp"] == [1.0, 2.0] and grid["setpoint"] == [4.0, 5.0, 6.0]
+    for bad, match in (("kp", "name=v1"), ("gain=1", "gain"), ("kp=a", "numbers")):
+        with pytest.raises(ValueError, match=match):
+            parse_grid("pi", [bad])
+
+
+def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) -> None:
+    """Two feed-forward points on one validation schedule; the better return is played on one test
+    schedule; a rerun reuses every stored point (same files, same numbers)."""
+    out = tmp_path / "ff"
+    argv = [
+        "--env",
+        TINY,
+        "--controller",
+        "feedforward",
+        "--grid",
+        "mason_star=0.5,4",
+        "--tune-episodes",
+        "1",
+        "--episodes",
+        "1",
+        "--out",
+        str(out),
+    ]
+    summary = controllers.main(argv)
+    tuning = sorted((out / "tuning").glob("*.json"))
+    assert len(tuning) == 2
+    returns = {json.loads(p.read_text())["params"]["mason_star"]: json.loads(p.read_text()) for p in tuning}
+    best = max(returns, key=lambda m: np.mean([e["return"] for e in returns[m]["episodes"]]))
+    assert summary["tuned_params"] == {"mason_star": best}
+    (point,) = (out / "points").glob("*.json")
+    record = json.loads(point.read_text())
+    assert record["episodes"][0]["split"] == "test"
+    assert {"time_above_cap", "excess_viscosity", "eta_mean"} <= set(record["episodes"][0])
+    before = point.read_bytes()
+    assert controllers.main(argv) == summary
+    assert point.read_bytes() == before
+
+
+@pytest.mark.parametrize(
+    ("extra", "match"),
+    [
+        (["--grid", "mason_star=0"], "mason_star"),
+        (["--split", "bogus"], "--split"),
+        (["--episodes", "9"], "--split"),
+        (["--workers", "0"], "--workers"),
+        (["--env", "dipenv/FieldMagnitudeTiny-v0"], "thickening-control"),
+    ],
+)
+def test_bad_arguments_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], match: str
+) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        controllers.main(["--env", TINY, "--controller", "feedforward", "--out", str(tmp_path), *extra])
+    assert exit_info.value.code == 2
+    assert match in capsys.readouterr().err
+
+
+def test_feedforward_is_refused_on_the_stress_only_env(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    kwargs = json.dumps({k: v for k, v in dipenv.THICKENING_TINY_KWARGS.items()})
+    with pytest.raises(SystemExit) as exit_info:
+        controllers.main(
+            [
+                "--env",
+                "dipenv/ThickeningControlStressOnly-v0",
+                "--env-kwargs",
+                kwargs,
+                "--controller",
+                "feedforward",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+    assert exit_info.value.code == 2
+    assert "log10_shear_rate" in capsys.readouterr().err
