@@ -78,7 +78,9 @@ def plot_layering(series: LayerOrderSeries, summary: LayerSummary, transient: fl
     if np.isfinite(summary.order):
         ax.axhline(summary.order, color="k", ls="--", lw=0.8, label=f"plateau {summary.order:.3g}")
     if np.isfinite(summary.onset_time):
-        ax.axhline(ONSET_FRACTION * summary.order, color="C3", ls=":", lw=0.8)
+        ax.axhline(
+            ONSET_FRACTION * summary.order, color="C3", ls=":", lw=0.8, label=f"{ONSET_FRACTION:g} x plateau"
+        )
         onset = summary.onset_strain if use_strain else summary.onset_time
         ax.axvline(onset, color="C3", ls=":", lw=0.8, label=f"onset at {onset:.3g}")
     ax.set_ylim(0.0, max(1.05 * float(psi.max()) if psi.size else 0.0, 2.0 / series.n_particles))

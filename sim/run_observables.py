@@ -219,7 +219,8 @@ class RunObservables:
     @property
     def next_sample_time(self) -> float:
         """Nominal clock ``t_k`` of the next sample of any kind (the layer order's during the transient)."""
-        return min(self.next_index, self.layer_next_index) * self.sample_interval
+        index = self.next_index if self.layering is None else min(self.next_index, self.layer_next_index)
+        return index * self.sample_interval
 
     def _following_index(self, index: int, clock: float, time_step: float) -> int:
         """The index after ``index`` whose sample point ``clock`` has not reached (a step may be longer
