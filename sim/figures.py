@@ -6,6 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.observables.layering import (
+    AXIS_NAMES,
+    LAYERED_MIN_STRUCTURE_FACTOR,
+    ONSET_FRACTION,
+    LayerOrderSeries,
+    LayerSummary,
+)
 from sim.simulation import StepRecords
 from sim.sweep_figures import plot_maron_pierce
 
@@ -38,6 +45,53 @@ def plot_rheology(records: StepRecords, path: Path, transient: float, title: str
         axes[0].set_title(title)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside upper center", ncol=3, fontsize="small", frameon=False)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def plot_layering(series: LayerOrderSeries, summary: LayerSummary, transient: float, path: Path) -> None:
+    """Layer order ``psi = S_peak / N`` against strain (against time when the strain stays 0: quiescent).
+
+    Marks: the samples (line with dots), the transient (grey band, clock 0 to ``transient``), the plateau
+    (mean after the transient, dashed), the onset threshold ``ONSET_FRACTION`` x plateau and the onset
+    (dotted, only when the run has layered) and the ideal-gas level ``1/N`` (thin grey). See
+    :mod:`sim.observables.layering`.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    table = series.table()
+    time, strain, psi = table[:, 0], table[:, 1], table[:, 2]
+    use_strain = bool(strain.size) and bool(np.any(strain != 0.0))
+    x = strain if use_strain else time
+
+    def to_x(clock: float) -> float:
+        return float(np.interp(clock, time, strain)) if use_strain else clock
+
+    fig, ax = plt.subplots(figsize=(7, 3.8), layout="constrained")
+    if x.size:
+        ax.axvspan(float(x[0]), to_x(transient), color="0.9", label="transient, not averaged")
+    ax.plot(x, psi, "-", lw=0.8, marker=".", ms=3, label=r"$\psi = S_\mathrm{peak}/N$")
+    ax.axhline(1.0 / series.n_particles, color="0.5", lw=0.6, label="ideal gas, one $k$: $1/N$")
+    if np.isfinite(summary.order):
+        ax.axhline(summary.order, color="k", ls="--", lw=0.8, label=f"plateau {summary.order:.3g}")
+    if np.isfinite(summary.onset_time):
+        ax.axhline(
+            ONSET_FRACTION * summary.order, color="C3", ls=":", lw=0.8, label=f"{ONSET_FRACTION:g} x plateau"
+        )
+        onset = summary.onset_strain if use_strain else summary.onset_time
+        ax.axvline(onset, color="C3", ls=":", lw=0.8, label=f"onset at {onset:.3g}")
+    ax.set_ylim(0.0, max(1.05 * float(psi.max()) if psi.size else 0.0, 2.0 / series.n_particles))
+    ax.set_xlabel(r"strain $\gamma$" if use_strain else "time")
+    ax.set_ylabel(r"$\psi$")
+    ax.set_title(
+        f"layer order along {AXIS_NAMES[series.axis]}, N = {series.n_particles}, "
+        f"L = {series.box_length:.3g} a (layered: plateau S >= {LAYERED_MIN_STRUCTURE_FACTOR:g})",
+        fontsize="small",
+    )
+    ax.legend(fontsize="small", frameon=False)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 

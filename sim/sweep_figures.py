@@ -17,7 +17,9 @@ Reads every ``DIR/<point>/result.json`` (written by :func:`sim.run.run_simulatio
   indexed ``[x bin, y bin]``, ``samples``; seeds averaged with ``samples`` as weights);
 * ``diffusivity.png``: ``D_yy / (gammadot a^2)`` against ``phi`` and against ``Mn`` (``result.json`` key
   ``diffusivity_yy``);
-* ``summary.csv``: every plotted number, one row per (``phi``, ``Mn``).
+* ``summary.csv``: every plotted number, one row per (``phi``, ``Mn``), and the layer order of
+  :mod:`sim.observables.layering` (``layer_order``, ``layer_spacing``, ``layer_onset_strain``: means over the
+  seeds that have them; NaN for older folders, and the onset NaN where no seed layered).
 
 Error bars are one standard error: over seeds (sample standard deviation / sqrt(n)) where a point has more
 than one seed, else the run's own block-average standard error (NaN where the run has none). A figure
@@ -54,6 +56,9 @@ QUANTITIES = {
     "diffusivity_yy": ("diffusivity_yy", "diffusivity_yy_stderr"),
     "diffusivity_zz": ("diffusivity_zz", "diffusivity_zz_stderr"),
     "particle_pressure": ("particle_pressure", "particle_pressure_stderr"),
+    "layer_order": ("layer_order", "layer_order_stderr"),
+    "layer_spacing": ("layer_spacing", None),
+    "layer_onset_strain": ("layer_onset_strain", None),
 }
 """Summary quantity -> (``result.json`` key of the value, of its standard error)."""
 
@@ -621,6 +626,12 @@ SUMMARY_COLUMNS = (
     "diffusivity_zz_stderr",
     "particle_pressure",
     "particle_pressure_stderr",
+    "layer_order",
+    "layer_order_stderr",
+    "layer_spacing",
+    "layer_spacing_stderr",
+    "layer_onset_strain",
+    "layer_onset_strain_stderr",
 )
 """Columns of ``summary.csv`` (``mason_crossover`` is the ``Mn_c`` of the row's ``phi``; standard errors
 as in the figures; ``inf``/``nan`` written as such)."""

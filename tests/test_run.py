@@ -13,6 +13,7 @@ import pytest
 import sim
 import sim.run
 from sim import SimulationConfig, SimulationState, run_simulation
+from sim.io import OBSERVABLE_PREFIX
 from sim.run import COMPILE_NOTICE, check_run_length, compiled_kernels_cached
 
 SHORT = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=3)
@@ -68,16 +69,26 @@ OBSERVABLE_KEYS = (
     "fabric_tensor",
     "contact_number",
     "structure_samples",
+    "layer_order",
+    "layer_order_stderr",
+    "layer_spacing",
+    "layer_onset_time",
+    "layer_onset_strain",
+    "layer_axis",
+    "layer_samples",
+    "layer_note",
 )
 
 
 def _assert_same_observables(a: Path, b: Path) -> None:
-    """pair_distribution.npz arrays and msd.csv identical (bit for bit; NaN where both are NaN)."""
+    """pair_distribution.npz arrays, msd.csv and layering.csv identical (bit for bit; NaN where both are
+    NaN)."""
     with np.load(a / "pair_distribution.npz") as x, np.load(b / "pair_distribution.npz") as y:
         assert set(x.files) == set(y.files)
         for name in x.files:
             np.testing.assert_array_equal(x[name], y[name], err_msg=name)
     assert (a / "msd.csv").read_text() == (b / "msd.csv").read_text()
+    assert (a / "layering.csv").read_text() == (b / "layering.csv").read_text()
 
 
 @pytest.mark.parametrize("transient", [None, 0.01])
@@ -98,6 +109,7 @@ def test_extending_a_run_on_resume_equals_the_longer_run(tmp_path: Path, transie
     assert direct["observables_note"] == ""
     assert direct["msd_samples"] == (6 if transient is None else 8)  # every 0.004 from 0.02 or 0.012
     assert direct["pair_distribution_samples"] == 2  # every fourth
+    assert direct["layer_samples"] == 11 and extended["layer_samples"] == 11  # every 0.004 from 0 to 0.04
     _assert_same_observables(tmp_path / "extended", tmp_path / "direct")
     for name in ("timeseries.csv", "params.json"):
         assert (tmp_path / "extended" / name).read_text() == (tmp_path / "direct" / name).read_text(), name
@@ -116,6 +128,27 @@ def test_extending_a_run_on_resume_equals_the_longer_run(tmp_path: Path, transie
     listed = "seed (3 there, 4 requested), time_step (0.002 there, 0.001 requested)"
     assert f"different parameters: {listed}; only strain may differ" in message
     assert "n_particles" not in message  # only the differing parameters are named
+
+
+def test_checkpoint_without_layer_order_still_resumes(tmp_path: Path) -> None:
+    """A checkpoint written before the layer order was sampled (its ``layer_*`` arrays removed) resumes:
+    the layer order starts at the first sample time the state has not passed (0.02: the last step
+    started at 0.018), says so in ``layer_note``, and the other observables are as before."""
+    run_simulation(SHORT, tmp_path / "o", progress=False, sample_interval=0.004)
+    checkpoint = tmp_path / "o" / "checkpoint.npz"
+    with np.load(checkpoint) as data:
+        kept = {name: data[name] for name in data.files if not name.startswith(f"{OBSERVABLE_PREFIX}layer_")}
+        assert len(kept) == len(data.files) - 6  # box_length, axis, n_particles, rows, next_index, note
+    np.savez(checkpoint, **kept)
+    resumed = run_simulation(LONG, tmp_path / "o", progress=False, resume=True, sample_interval=0.004)
+    direct = run_simulation(LONG, tmp_path / "direct", progress=False, sample_interval=0.004)
+    assert resumed["layer_note"] == "layer order from time 0.02: the checkpoint holds none before"
+    assert resumed["layer_samples"] == 6  # 0.02, 0.024, ..., 0.04
+    layering = np.loadtxt(tmp_path / "o" / "layering.csv", delimiter=",", skiprows=1)
+    full = np.loadtxt(tmp_path / "direct" / "layering.csv", delimiter=",", skiprows=1)
+    np.testing.assert_array_equal(layering, full[5:])  # the same configurations as the direct run's
+    assert resumed["relative_viscosity"] == direct["relative_viscosity"]
+    assert resumed["msd_samples"] == direct["msd_samples"]
 
 
 class _Bar:
@@ -151,6 +184,19 @@ def test_observables_contract_and_short_runs(tmp_path: Path) -> None:
     assert saved["structure_samples"] == 1 and np.trace(fabric) == pytest.approx(1.0, abs=1e-12)
     np.testing.assert_array_equal(fabric, fabric.T)
     assert saved["contact_number"] >= 0.0
+    # layer order from t = 0 (the transient included) at every sample time; N = 40 random: not layered
+    layering = np.loadtxt(tmp_path / "o" / "layering.csv", delimiter=",", skiprows=1)
+    assert (tmp_path / "o" / "layering.csv").read_text().startswith("time,strain,psi,s_peak,k_peak,spacing\n")
+    np.testing.assert_allclose(layering[:, 0], np.arange(6) * 0.004, atol=1e-12)
+    np.testing.assert_allclose(layering[:, 1], layering[:, 0], atol=1e-12)  # strain = time at rate 1
+    assert np.all((layering[:, 2] > 0.0) & (layering[:, 2] <= 1.0))
+    np.testing.assert_allclose(layering[:, 2] * 40, layering[:, 3], rtol=1e-9)  # psi = S_peak / N
+    np.testing.assert_allclose(layering[:, 5] * layering[:, 4], 2 * np.pi, rtol=1e-9)
+    assert saved["layer_samples"] == 6 and saved["layer_axis"] == "y" and saved["layer_note"] == ""
+    assert saved["layer_order"] == pytest.approx(layering[3:, 2].mean(), rel=1e-9)  # t >= 0.01
+    assert np.isnan(saved["layer_order_stderr"])  # 3 samples < 10 blocks
+    assert np.isnan(saved["layer_onset_time"]) and np.isnan(saved["layer_onset_strain"])
+    assert (tmp_path / "o" / "layering.png").stat().st_size > 0
     with np.load(tmp_path / "o" / "pair_distribution.npz") as data:
         assert data["g_xy"].shape == (data["x_edges"].size - 1, data["y_edges"].size - 1)
         assert data["g_r"].shape == (data["r_edges"].size - 1,) and int(data["samples"]) == 1

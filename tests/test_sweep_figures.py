@@ -60,6 +60,10 @@ def fake_result(phi: float, mason: float, seed: int, with_new_keys: bool = True)
     if with_new_keys:
         result["diffusivity_yy"] = 0.01 * (1.0 + phi) * (1.0 + field) * (1.0 + wobble)
         result["diffusivity_zz"] = 0.02 * (1.0 + phi)
+        result["layer_order"] = 0.1 * phi + 0.01 * seed
+        result["layer_order_stderr"] = 0.005
+        result["layer_spacing"] = 2.45
+        result["layer_onset_strain"] = 1.0 + seed if seed == 1 else math.nan  # seed 2 never layered
     return result
 
 
@@ -147,6 +151,12 @@ def test_every_figure_and_the_summary_numbers(tmp_path: Path) -> None:
         assert float(row["n1_over_pure_shear_stderr"]) == pytest.approx(error, rel=1e-12)
         d_yy = [results[(phi, mason, s)]["diffusivity_yy"] for s in seeds]
         assert float(row["diffusivity_yy"]) == pytest.approx(sum(d_yy) / len(d_yy), rel=1e-12)
+        psi = [results[(phi, mason, s)]["layer_order"] for s in seeds]
+        expected_psi = mean_and_stderr(psi) if len(psi) > 1 else (psi[0], 0.005)
+        assert float(row["layer_order"]) == pytest.approx(expected_psi[0], rel=1e-12)
+        assert float(row["layer_order_stderr"]) == pytest.approx(expected_psi[1], rel=1e-12)
+        assert float(row["layer_spacing"]) == 2.45
+        assert float(row["layer_onset_strain"]) == 2.0  # seed 1's; seed 2 has none
     single = rows[SINGLE_SEED]
     assert single["diffusivity_yy_stderr"] == "nan"  # one seed and no per-run error: no bar
     assert any("Mn_c = 0.8" in note for note in notes) and any("Mn_c = 1.7" in note for note in notes)
@@ -184,7 +194,7 @@ def test_older_sweep_folders_skip_the_missing_figures(tmp_path: Path, capsys) ->
     assert "diffusivity.png skipped: no finite diffusivity_yy" in stdout
     assert {p.name for p in out.iterdir()} == ALL_FIGURES - {"pair_distribution.png", "diffusivity.png"}
     rows = read_summary(out / "summary.csv")
-    assert all(r["diffusivity_yy"] == "nan" for r in rows.values())
+    assert all(r["diffusivity_yy"] == "nan" and r["layer_order"] == "nan" for r in rows.values())
 
 
 def test_without_pure_shear_the_normal_stress_figure_is_skipped(tmp_path: Path) -> None:
