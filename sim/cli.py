@@ -12,10 +12,12 @@
 cartesian product with ``--seeds``), the other options one value for every point.
 
 Exit status 0 on success, 2 on bad input (``python -m sim <command>: error: ...`` after the command's
-usage; the message names the flag and its valid range), 1 when a simulation fails (for ``sweep``: when
-any point failed; the others still run, and ``error.json`` in the failed point's folder holds the
-traceback), 130 when a sweep is interrupted (rerun the same command to resume it). With ``--json`` the
-last line on stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
+usage; the message names the flag and its valid range; for ``run`` also an ``--out`` that already holds
+a run, unless ``--resume`` continues it or ``--overwrite`` replaces it), 1 when a simulation fails (for
+``sweep``: when any point failed; the others still run, and ``error.json`` in the failed point's folder
+holds the traceback), 130 when a sweep is interrupted (rerun the same command to resume it). With
+``--json`` the last line on stdout is one JSON object (``run``: ``result.json``; ``sweep``:
+``sweep.json``).
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ FLAGS = {
     "ewald_accuracy": "--ewald-accuracy",
     "out_dir": "--out",
     "resume": "--resume",
+    "overwrite": "--overwrite",
     "rates": "--rates",
     "strain_per_rate": "--strain-per-rate",
 }
@@ -367,10 +370,17 @@ def _add_run_arguments(run: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim run``."""
     _add_simulation_options(run, lists=False)
     run.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
-    run.add_argument(
+    existing = run.add_mutually_exclusive_group()
+    existing.add_argument(
         "--resume",
         action="store_true",
         help="continue from OUT/checkpoint.npz; only --strain may differ from that run (to extend it)",
+    )
+    existing.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="delete the files of the run already in OUT and start afresh (without --resume or "
+        "--overwrite, an OUT that holds a run, even one of the same parameters, is refused with exit 2)",
     )
 
 
@@ -699,6 +709,7 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
             args.out,
             progress=False if args.quiet else None,
             resume=args.resume,
+            overwrite=args.overwrite,
             command=["python", "-m", "sim", *args_list],
             parameter_names=FLAGS,
         )

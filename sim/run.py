@@ -68,6 +68,90 @@ def _check_output_directory(out: Path, names: Mapping[str, str] | None) -> None:
         raise ValueError(f"{_name('out_dir', names)} {out} exists and is not a directory")
 
 
+RUN_FILES = (
+    "params.json",
+    "checkpoint.npz",
+    "result.json",
+    "final_state.npz",
+    "timeseries.csv",
+    "pair_distribution.npz",
+    "msd.csv",
+    "stress.png",
+)
+"""The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run."""
+
+
+def _saved_config(out: Path) -> SimulationConfig | None:
+    """The configuration of the run in ``out`` (its ``params.json``, else its checkpoint), None if neither
+    can be read."""
+    try:
+        return SimulationConfig.from_dict(io.read_json(out / "params.json")["config"])
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    try:
+        return io.load_checkpoint(out / "checkpoint.npz")[0]
+    except Exception:  # missing or unreadable: nothing to compare with
+        return None
+
+
+def _check_run_folder(
+    out: Path, config: SimulationConfig, resume: bool, overwrite: bool, names: Mapping[str, str] | None
+) -> None:
+    """Refuse to start a fresh run in a folder that already holds a run (``ValueError``).
+
+    A folder holds a run when it holds one of :data:`RUN_FILES`. Without ``resume`` or ``overwrite`` such
+    a folder is refused, whether its run has other parameters (they are named), is an interrupted run of
+    the same parameters (continue it with ``resume``) or a finished one (a rerun would only repeat it bit
+    for bit: ``resume`` rewrites its results, ``overwrite`` runs it again).
+    """
+    out_flag, resume_flag, overwrite_flag = (_name(n, names) for n in ("out_dir", "resume", "overwrite"))
+    if resume and overwrite:
+        raise ValueError(f"{resume_flag} and {overwrite_flag} exclude each other")
+    if resume or overwrite or not out.is_dir():
+        return
+    present = [name for name in RUN_FILES if (out / name).exists()]
+    if not present:
+        return
+    ways = f"choose another {out_flag}, or give {overwrite_flag} to delete its files and start afresh"
+    saved = _saved_config(out)
+    if saved is None:
+        raise ValueError(
+            f"{out_flag} {out} holds files of another run ({', '.join(present)}) whose parameters cannot be "
+            f"read; {ways}"
+        )
+    old, new = saved.to_dict(), config.to_dict()
+    differing = [f for f in old if old[f] != new.get(f)]
+    if differing:
+        listed = ", ".join(f"{_name(f, names)} ({old[f]!r} there, {new[f]!r} requested)" for f in differing)
+        extend = (
+            f"; {resume_flag} continues it to the new {_name('strain', names)}"
+            if differing == ["strain"] and (out / "checkpoint.npz").exists()
+            else ""
+        )
+        raise ValueError(f"{out_flag} {out} holds a run with different parameters: {listed}{extend}; {ways}")
+    state = "a finished run" if (out / "result.json").exists() else "an interrupted run"
+    raise ValueError(
+        f"{out_flag} {out} already holds {state} of these parameters; give {resume_flag} to continue it "
+        f"(a finished run's results are rewritten, unchanged) or {overwrite_flag} to run it again from the "
+        "start"
+    )
+
+
+def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
+    """Delete the run files of ``out`` (and temporary files of :func:`sim.io.atomic_file`) but ``keep``.
+
+    Done before a run writes its ``params.json``, so that a run killed later never leaves the new
+    parameters beside the results of an earlier run."""
+    if not out.is_dir():
+        return
+    for name in RUN_FILES:
+        if name not in keep:
+            (out / name).unlink(missing_ok=True)
+    for name in RUN_FILES:
+        for tmp in out.glob(f".{name}.*{io.TEMPORARY_SUFFIX}"):
+            tmp.unlink(missing_ok=True)
+
+
 def _differing_parameters(saved: SimulationConfig, requested: SimulationConfig) -> list[str]:
     """Fields (other than ``strain``) in which two configurations differ."""
     old, new = saved.to_dict(), requested.to_dict()
@@ -155,11 +239,16 @@ def run_simulation(
     command: list[str] | None = None,
     parameter_names: Mapping[str, str] | None = None,
     sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Run (or resume) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
     Every check of the input happens before anything is written: a refused run leaves no directory
-    behind.
+    behind, and a folder that already holds a run (any of :data:`RUN_FILES`) is refused unless
+    ``resume`` or ``overwrite`` is given, even for a rerun of the same parameters (see
+    :func:`_check_run_folder`). Before ``params.json`` is written, the files of the earlier run that the
+    new one will rewrite are deleted (with ``resume``, all but the checkpoint), so an interrupted run
+    never leaves stale results beside its parameters.
 
     Args:
         config: the run's parameters; ``strain`` must be > 0 and leave a sample after the transient.
@@ -169,6 +258,7 @@ def run_simulation(
         progress: show a progress bar; ``None`` means only when stderr is a terminal. Unless ``False``,
             a note goes to stderr before kernels are compiled (the first run of these sources).
         resume: continue from ``out_dir/checkpoint.npz``.
+        overwrite: start afresh in a folder that holds another run (or the same one), deleting its files.
         command: the command line, recorded in ``params.json``.
         parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
             the command line passes its flags. Field names by default.
@@ -190,7 +280,8 @@ def run_simulation(
         arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`).
 
     Raises:
-        ValueError: bad input (the message names the parameter); FileNotFoundError: ``resume`` without a
+        ValueError: bad input (the message names the parameter), a folder holding a run without
+        ``resume`` or ``overwrite``, or both of them; FileNotFoundError: ``resume`` without a
         checkpoint; NotImplementedError: a configuration the simulator does not support yet;
         SimulationError: a step failed.
     """
@@ -205,6 +296,7 @@ def run_simulation(
     ):
         raise ValueError(f"{_name('sample_interval', names)} must be finite and > 0, got {sample_interval!r}")
     _check_output_directory(out, names)
+    _check_run_folder(out, config, resume, overwrite, names)
     checkpoint = out / "checkpoint.npz"
     state: SimulationState | None = None
     records: StepRecords | None = None
@@ -223,6 +315,7 @@ def run_simulation(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"{_name('out_dir', names)} {out} cannot be created: {exc.strerror}") from exc
+    _remove_outputs(out, keep=("checkpoint.npz",) if resume else ())
     io.write_params(out, config, command)
     wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress, observables)
     return _write_results(sim, out, checkpoint, wall, observables)

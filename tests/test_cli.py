@@ -261,6 +261,34 @@ def test_resume_extends_the_strain(finished_run, tmp_path: Path, capsys) -> None
     assert result["strain"] >= 0.04 and result["averaged_from_strain"] == 0.02
 
 
+def test_a_folder_holding_another_run_is_refused(finished_run, tmp_path: Path, capsys) -> None:
+    """Was: ``--seed 2 --out DIR`` over another run's folder overwrote it with exit 0. Refused (exit 2,
+    the folder and the differing flags named, files untouched); the same command again is refused with
+    the ways in; ``--overwrite`` replaces the run; ``--resume --overwrite`` is refused by argparse."""
+    out = tmp_path / "copy"
+    shutil.copytree(finished_run[0], out)
+    before = (out / "result.json").read_bytes()
+    status, _, err = run_cli([*RUN_ARGS[:-2], "--seed", "2", "--out", str(out)], capsys)
+    assert_refused(status, err, f"--out {out} holds a run with different parameters: --seed (1 there, 2 ")
+    assert "give --overwrite to delete its files" in err
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out)], capsys)
+    assert_refused(status, err, f"--out {out} already holds a finished run of these parameters; give ")
+    assert "give --resume to continue it" in err
+    assert (out / "result.json").read_bytes() == before
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out), "--resume", "--overwrite"], capsys)
+    assert status == 2 and "--overwrite: not allowed with argument --resume" in err
+    args = [*RUN_ARGS[:-2], "--seed", "2", "--out", str(out), "--overwrite", "--json"]
+    status, stdout, _ = run_cli(args, capsys)
+    assert status == 0 and json.loads(stdout.strip().splitlines()[-1])["seed"] == 2
+    assert json.loads((out / "params.json").read_text())["config"]["seed"] == 2
+
+
+def test_help_lists_overwrite(capsys) -> None:
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    assert "--overwrite" in capsys.readouterr().out
+
+
 def test_process_exit_status() -> None:
     """The real entry point (``python -m sim``) exits 2 on bad input; everything else runs in-process."""
     proc = subprocess.run(
