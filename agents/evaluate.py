@@ -44,7 +44,7 @@ from agents.comparison import action_variation, front_eta, front_points, positio
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
-from agents.usage import usage_error
+from agents.usage import directory, usage_error
 
 PROG = "python -m agents.evaluate"
 
@@ -374,7 +374,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("runs", nargs="+", type=Path, help="run folders or folders of them")
     parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
-    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
     parser.add_argument("--episodes", type=int, default=None, help="first N states (default: the baseline's)")
     parser.add_argument(

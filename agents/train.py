@@ -38,7 +38,7 @@ import numpy as np
 import yaml
 
 from agents.tasks import parse_seeds, run_tasks
-from agents.usage import json_object, usage_error
+from agents.usage import directory, json_object, usage_error
 
 PROG = "python -m agents.train"
 
@@ -315,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, default=None, help="one training seed; OUT is the run folder")
     seeds.add_argument("--seeds", default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>")
-    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--timesteps", type=int, default=None, help="override n_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--hyperparams", nargs="*", default=[], help="key=value overrides (YAML values)")

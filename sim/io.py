@@ -34,6 +34,7 @@ import contextlib
 import json
 import os
 import platform
+import zipfile
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import IO, Any
@@ -234,9 +235,52 @@ def save_checkpoint(
         )
 
 
+class CheckpointError(ValueError):
+    """A checkpoint file that cannot be read: the message names the file and what is wrong with it."""
+
+
+_UNREADABLE = (OSError, EOFError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile)
+"""What reading a damaged or foreign ``.npz`` can raise (numpy, zipfile, json, the config's checks)."""
+
+
+@contextlib.contextmanager
+def _open_checkpoint(path: Path) -> Iterator[Any]:
+    """The ``.npz`` archive at ``path`` (never unpickling), or :class:`CheckpointError` saying what is
+    wrong: a directory in its place, an empty file, a file that is not an ``.npz`` archive, a truncated
+    one, or one that lacks what a checkpoint holds. ``FileNotFoundError`` when nothing is there."""
+    path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"{path} is a directory, not a checkpoint file")
+    if not path.exists():
+        raise FileNotFoundError(f"no checkpoint at {path}")
+    if path.stat().st_size == 0:
+        raise CheckpointError(f"{path} is empty (a run killed while writing it?)")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except _UNREADABLE:
+        raise CheckpointError(f"{path} is not an .npz archive (or is truncated)") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise CheckpointError(f"{path} is a single .npy array, not a checkpoint archive")
+    with data:
+        try:
+            yield data
+        except KeyError as exc:
+            missing = str(exc.args[0] if exc.args else exc).removesuffix(" is not a file in the archive")
+            raise CheckpointError(
+                f"{path} is not a checkpoint of a run: it lacks {missing!r} (it holds "
+                f"{', '.join(data.files[:5]) or 'nothing'}{', ...' if len(data.files) > 5 else ''})"
+            ) from None
+        except _UNREADABLE as exc:
+            damaged = isinstance(exc, zipfile.BadZipFile | EOFError | OSError)
+            reason = "truncated or damaged" if damaged else "its contents are not those of a checkpoint"
+            raise CheckpointError(f"{path} cannot be read: {reason}") from None
+
+
 def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
-    """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without."""
-    with np.load(path) as data:
+    """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without.
+
+    Raises :class:`CheckpointError` for a file that is not a readable checkpoint."""
+    with _open_checkpoint(path) as data:
         return {
             name[len(OBSERVABLE_PREFIX) :]: np.array(data[name])
             for name in data.files
@@ -245,8 +289,14 @@ def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
 
 
 def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, StepRecords, float]:
-    """Inverse of :func:`save_checkpoint`."""
-    with np.load(path) as data:
+    """Inverse of :func:`save_checkpoint`.
+
+    Raises:
+        FileNotFoundError: nothing at ``path``.
+        CheckpointError: (a ``ValueError``) anything else that is not a readable checkpoint, named with
+            what is wrong (a directory, an empty, truncated, foreign or non-``.npz`` file).
+    """
+    with _open_checkpoint(path) as data:
         config = SimulationConfig.from_dict(json.loads(str(data["config"])))
         return (
             config,

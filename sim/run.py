@@ -6,11 +6,14 @@ resumed run continues them bit for bit."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -169,7 +172,10 @@ def _load_resumable(
     resume = _name("resume", names)
     if not checkpoint.exists():
         raise FileNotFoundError(f"{resume}: no checkpoint at {checkpoint}")
-    saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
+    try:
+        saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
+    except io.CheckpointError as exc:
+        raise io.CheckpointError(f"{resume}: {exc}") from None
     differing = _differing_parameters(saved_config, config)
     if differing:
         old, new = saved_config.to_dict(), config.to_dict()
@@ -286,6 +292,8 @@ def run_simulation(
         SimulationError: a step failed.
     """
     names = parameter_names
+    if not str(out_dir).strip():  # Path("") would be the current folder
+        raise ValueError(f"{_name('out_dir', names)} must name a directory, got {str(out_dir)!r}")
     out = Path(out_dir)
     check_run_length(config, names)
     if not (
@@ -304,7 +312,10 @@ def run_simulation(
     saved_observables: dict[str, np.ndarray] = {}
     if resume:
         state, records, wall_before = _load_resumable(checkpoint, config, names)
-        saved_observables = io.load_checkpoint_observables(checkpoint)
+        try:
+            saved_observables = io.load_checkpoint_observables(checkpoint)
+        except io.CheckpointError as exc:
+            raise io.CheckpointError(f"{_name('resume', names)}: {exc}") from None
     observables = RunObservables.for_run(config, float(sample_interval), records, saved_observables, names)
     if progress is not False and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
@@ -321,6 +332,34 @@ def run_simulation(
     return _write_results(sim, out, checkpoint, wall, observables)
 
 
+@contextlib.contextmanager
+def _deferred_interrupt() -> Iterator[Callable[[], bool]]:
+    """While the block runs, Ctrl-C (SIGINT) only sets a flag, which the yielded function reads.
+
+    A ``KeyboardInterrupt`` raised while a compiled kernel runs comes out of numba as a ``SystemError``
+    ("returned a result with an exception set") and would end the run as a failed simulation; deferred,
+    the step loop stops at the end of the current chunk of steps, with a checkpoint. A second Ctrl-C
+    puts the previous handler back, so a third interrupts at once. Outside the main thread (where no
+    handler can be set) nothing is deferred."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    pending = False
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum: int, frame: Any) -> None:
+        nonlocal pending
+        if pending:
+            signal.signal(signal.SIGINT, previous)
+        pending = True
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: pending
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _advance_with_checkpoints(
     sim: Simulation,
     checkpoint: Path,
@@ -333,9 +372,10 @@ def _advance_with_checkpoints(
 
     The step loop is stopped at every sample time (:meth:`Simulation.advance_to`; stopping never changes
     the trajectory), and a sample due at the end of a chunk is taken before that chunk's checkpoint, so a
-    checkpoint always holds the accumulators of its state. The progress bar appears after the first
-    chunk of steps, so that its clock (and its estimate of the time left) does not include compiling the
-    kernels.
+    checkpoint always holds the accumulators of its state. Ctrl-C is deferred to the end of the current
+    chunk (:func:`_deferred_interrupt`), where a checkpoint is written and ``KeyboardInterrupt`` raised.
+    The progress bar appears after the first chunk of steps, so that its clock (and its estimate of the
+    time left) does not include compiling the kernels.
     """
     config = sim.config
     start = time.perf_counter()
@@ -357,7 +397,8 @@ def _advance_with_checkpoints(
             bar.n = round(run_length(s), 6)
             bar.refresh()
         observables.sample_if_due(s)
-        if s.state.time >= next_checkpoint - 1e-9:
+        stop = interrupted()
+        if s.state.time >= next_checkpoint - 1e-9 or stop:
             io.save_checkpoint(
                 checkpoint,
                 config,
@@ -366,14 +407,18 @@ def _advance_with_checkpoints(
                 wall_before + time.perf_counter() - start,
                 observables.arrays(),
             )
-            next_checkpoint += config.checkpoint_every
+            if not stop:
+                next_checkpoint += config.checkpoint_every
+        if stop:  # Ctrl-C: stop here, at the end of a chunk, with the checkpoint just written
+            raise KeyboardInterrupt
 
     end = stop_time(config.duration, config.time_step)
     try:
-        observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
-        while sim.state.time < end:
-            target = min(observables.next_sample_time, config.duration)
-            sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
+        with _deferred_interrupt() as interrupted:
+            observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
+            while sim.state.time < end:
+                target = min(observables.next_sample_time, config.duration)
+                sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
     finally:
         if bar is not None:
             bar.close()

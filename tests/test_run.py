@@ -3,7 +3,10 @@ and a progress bar whose clock starts after compilation."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import signal
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -50,6 +53,8 @@ def test_refused_runs_write_nothing(tmp_path: Path) -> None:
     existing.write_text("x")
     with pytest.raises(ValueError, match="exists and is not a directory"):
         run_simulation(SHORT, existing, progress=False)
+    with pytest.raises(ValueError, match="out_dir must name a directory, got ''"):
+        run_simulation(SHORT, "", progress=False)
     with pytest.raises(FileNotFoundError, match="resume: no checkpoint at"):
         run_simulation(SHORT, tmp_path / "none", progress=False, resume=True)
     assert not (tmp_path / "none").exists()
@@ -310,3 +315,38 @@ def test_json_goes_through_atomic_file(tmp_path: Path) -> None:
     sim.io.write_json(path, {"a": float("nan")})
     assert sim.io.read_json(path)["a"] != sim.io.read_json(path)["a"]
     assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
+
+
+def test_ctrl_c_stops_at_the_end_of_a_chunk_with_a_checkpoint(tmp_path: Path, monkeypatch) -> None:
+    """Ctrl-C inside a compiled kernel came out as a SystemError (a failed simulation). It is deferred to
+    the end of the chunk of steps, where a checkpoint is written; resuming from it gives the
+    uninterrupted run's numbers bit for bit."""
+    config = dataclasses.replace(SHORT, strain=0.3, transient_strain=0.1)  # 150 steps, several chunks
+
+    @contextlib.contextmanager
+    def pressed_at_once() -> Iterator[Callable[[], bool]]:
+        yield lambda: True
+
+    with monkeypatch.context() as patch:
+        patch.setattr(sim.run, "_deferred_interrupt", pressed_at_once)
+        with pytest.raises(KeyboardInterrupt):
+            run_simulation(config, tmp_path / "cut", progress=False)
+    _, state, _, _ = sim.io.load_checkpoint(tmp_path / "cut" / "checkpoint.npz")
+    assert 0.0 < state.strain < 0.3 and not (tmp_path / "cut" / "result.json").exists()
+    resumed = run_simulation(config, tmp_path / "cut", progress=False, resume=True)
+    direct = run_simulation(config, tmp_path / "direct", progress=False)
+    for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "min_gap", "msd_samples"):
+        assert resumed[key] == direct[key], key
+    _assert_same_observables(tmp_path / "cut", tmp_path / "direct")
+    assert (tmp_path / "cut" / "timeseries.csv").read_text() == (
+        tmp_path / "direct" / "timeseries.csv"
+    ).read_text()
+
+
+def test_deferred_interrupt_sets_a_flag_then_restores_the_handler() -> None:
+    previous = signal.getsignal(signal.SIGINT)
+    with sim.run._deferred_interrupt() as interrupted:
+        assert not interrupted()
+        signal.raise_signal(signal.SIGINT)  # no KeyboardInterrupt here
+        assert interrupted()
+    assert signal.getsignal(signal.SIGINT) is previous
