@@ -44,7 +44,7 @@ from agents.comparison import action_variation, front_eta, front_points, positio
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
 from agents.tasks import run_tasks
-from agents.usage import usage_error
+from agents.usage import directory, usage_error
 
 PROG = "python -m agents.evaluate"
 
@@ -87,6 +87,38 @@ def model_files(run: Path, which: str) -> tuple[Path, Path]:
     return model, run / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
 
 
+def start_state_library(config: dict[str, Any]) -> str:
+    """Key of the start-state library a run's env plays (``StateLibrary.key`` of dipenv.state_library)."""
+    env = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
+    try:
+        return str(env.unwrapped.library().key)  # type: ignore[attr-defined]
+    finally:
+        env.close()
+
+
+def check_same_states(
+    keys: dict[Path, str], pareto: dict[str, Any], configs: dict[Path, dict[str, Any]]
+) -> None:
+    """Exit 2 unless every run plays the start states of the baseline (the same library key).
+
+    A different key means other start states: other env arguments that shape them (volume fraction,
+    particle number, ...), or states regenerated since by other simulator physics; comparing returns on
+    them with the baseline's would not be "on the same states"."""
+    baseline = pareto.get("library_key")
+    differing = {run: key for run, key in keys.items() if key != baseline}
+    if not differing:
+        return
+    run, key = next(iter(differing.items()))
+    arguments = configs.get(run, {}).get("env_kwargs")
+    message = (
+        f"RUN_DIRS: {run} plays the start states of library {key}, the --baseline those of library "
+        f"{baseline} ({len(differing)} of {len(keys)} runs differ): the env arguments (the run's "
+        f"{arguments!r}, the baseline's {pareto.get('env_kwargs')!r}) or the simulator physics that made "
+        "the states differ; make the baseline again with agents.open_loop for these runs"
+    )
+    usage_error(PROG, message)
+
+
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
@@ -103,7 +135,9 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     model_file, stats_file = Path(payload["model_file"]), Path(payload["stats_file"])
     model = (PPO if config["algo"] == "ppo" else SAC).load(str(model_file), device="cpu")
     normaliser = None
-    if stats_file.exists():
+    if payload.get("normalize", stats_file.exists()):
+        if not stats_file.exists():  # main() refuses this first; a raw observation would be meaningless
+            raise FileNotFoundError(f"{run} was trained with VecNormalize, but {stats_file} is missing")
         with open(stats_file, "rb") as handle:
             normaliser = pickle.load(handle)
         normaliser.training = False
@@ -340,7 +374,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("runs", nargs="+", type=Path, help="run folders or folders of them")
     parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
-    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
     parser.add_argument("--episodes", type=int, default=None, help="first N states (default: the baseline's)")
     parser.add_argument(
@@ -373,6 +407,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             usage_error(
                 PROG, f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}"
             )
+    split = args.split or pareto["split"]
+    if split != pareto["split"]:
+        usage_error(
+            PROG,
+            f"--split {split}: the --baseline {args.baseline} was played on the {pareto['split']} start "
+            f"states, and policies are compared with it on the same states (omit --split, or give "
+            f"--split {pareto['split']}, or make a baseline on the {split} states with agents.open_loop)",
+        )
+    library_keys = {run: start_state_library(run_config) for run, run_config in configs.items()}
+    check_same_states(library_keys, pareto, configs)
     # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
     # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
     config = next(iter(configs.values()))
@@ -381,7 +425,6 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     probe.close()
     points = [rescore(read_json(p), reward) for p in sorted((args.baseline / "points").glob("*.json"))]
     summary = summarise_points(points)
-    split = args.split or pareto["split"]
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     if args.episodes is not None and not 1 <= args.episodes <= len(baseline_indices):
         usage_error(PROG, f"--episodes must be in [1, {len(baseline_indices)}] (the baseline's states)")
@@ -394,21 +437,26 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         for name, runs in groups.items()
         for sampled in sampling
     }
-    (args.out / "runs").mkdir(parents=True, exist_ok=True)
-    (args.out / "command.txt").write_text(
-        " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
-    )
     payloads, owners = [], []
     for name, (runs, sampled) in policies.items():
         for run in runs:
             label = f"{run.parent.name}_{run.name}".replace("/", "_")
             label += ("_best" if args.model == "best" else "") + ("_stochastic" if sampled else "")
             model_file, stats_file = model_files(run, args.model)
+            normalize = bool((configs[run].get("hyperparams") or {}).get("normalize", stats_file.exists()))
+            if normalize and not stats_file.exists():
+                usage_error(
+                    PROG,
+                    f"RUN_DIRS: {run} was trained with observation normalisation (VecNormalize), but its "
+                    f"statistics {stats_file} are missing; its policy cannot be played on raw "
+                    "observations (restore the file, or evaluate another --model)",
+                )
             payloads.append(
                 {
                     "run": str(run),
                     "model_file": str(model_file),
                     "stats_file": str(stats_file),
+                    "normalize": normalize,
                     "stochastic": sampled,
                     "split": split,
                     "indices": indices,
@@ -419,15 +467,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "indices": indices,
                         "model": str(model_file.resolve()),
                         "model_mtime": model_file.stat().st_mtime_ns,
+                        "library_key": library_keys[run],  # start states regenerated: played again
                         **({"stochastic": True} if sampled else {}),
                     },
                 }
             )
             owners.append(name)
+    (args.out / "runs").mkdir(parents=True, exist_ok=True)
+    (args.out / "command.txt").write_text(
+        " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
+    )
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
-    keys = {r["library_key"] for r in records} | {pareto.get("library_key")}
-    if len(keys) > 1:
-        print(f"warning: start-state libraries differ between runs and baseline: {sorted(map(str, keys))}")
+    check_same_states({Path(r["run"]): r["library_key"] for r in records}, pareto, configs)
     by_label = {p["label"]: p for p in points}
     best = max(summary, key=lambda r: r["return"])  # for this reward
     best_name = f"best constant ({best['label']})"

@@ -38,7 +38,7 @@ import numpy as np
 import yaml
 
 from agents.tasks import parse_seeds, run_tasks
-from agents.usage import json_object, usage_error
+from agents.usage import directory, json_object, usage_error
 
 PROG = "python -m agents.train"
 
@@ -95,6 +95,32 @@ def _latest_checkpoint(folder: Path) -> tuple[int, Path] | None:
     return max(found) if found else None
 
 
+def missing_normalisation(out: Path, hyperparams: dict[str, Any]) -> str | None:
+    """Why ``out`` cannot be resumed, or None: its latest checkpoint lacks the ``VecNormalize`` statistics
+    saved with it (a resumed policy would see observations scaled by fresh statistics). A run without
+    checkpoints, one trained without normalisation, or one already finished is not resumed from them."""
+    if not hyperparams.get("normalize"):
+        return None
+    latest = _latest_checkpoint(out / "checkpoints")
+    if latest is None:
+        return None
+    try:
+        done = json.loads((out / "result.json").read_text())
+        if int(done["timesteps"]) >= int(hyperparams["n_timesteps"]):
+            return None  # finished: a rerun returns its result
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    steps, model = latest
+    stats = out / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
+    if stats.exists():
+        return None
+    return (
+        f"--out {out}: resuming from {model} needs the observation normalisation saved with it, {stats}, "
+        "which is missing (fresh statistics would feed the policy differently scaled observations); "
+        "restore it, or delete the run's folder to train afresh, or choose another --out"
+    )
+
+
 def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Train one seed into ``payload["out"]`` (a task; see the module docstring). Returns ``result.json``."""
     import torch
@@ -138,6 +164,10 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             if int(done["timesteps"]) >= int(hp["n_timesteps"]):
                 probe.close()
                 return dict(done)  # finished (a larger n_timesteps continues it from its last checkpoint)
+    problem = missing_normalisation(out, hp)
+    if problem is not None:  # main() refuses this before any task starts
+        probe.close()
+        raise FileNotFoundError(problem)
     out.mkdir(parents=True, exist_ok=True)
     config_file.write_text(yaml.safe_dump({**identity, "versions": versions()}, sort_keys=False))
     (out / "command.txt").write_text(payload["command"] + "\n")
@@ -177,10 +207,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     algo_cls: Any = PPO if algo == "ppo" else SAC
     if latest is not None:
         steps_done, model_path = latest
-        stats = checkpoints / f"ckpt_vecnormalize_{steps_done}_steps.pkl"
-        env: Any = VecNormalize.load(str(stats), venv) if normalize and stats.exists() else venv
-        if normalize and not stats.exists():
-            env = VecNormalize(venv, gamma=gamma)
+        stats = checkpoints / f"ckpt_vecnormalize_{steps_done}_steps.pkl"  # checked above
+        env: Any = VecNormalize.load(str(stats), venv) if normalize else venv
         model = algo_cls.load(str(model_path), env=env, device="cpu")
         buffer = checkpoints / f"ckpt_replay_buffer_{steps_done}_steps.pkl"
         if algo == "sac" and buffer.exists():
@@ -287,7 +315,7 @@ def build_parser() -> argparse.ArgumentParser:
     seeds = parser.add_mutually_exclusive_group()
     seeds.add_argument("--seed", type=int, default=None, help="one training seed; OUT is the run folder")
     seeds.add_argument("--seeds", default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>")
-    parser.add_argument("--out", required=True, type=Path)
+    parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--timesteps", type=int, default=None, help="override n_timesteps")
     parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
     parser.add_argument("--hyperparams", nargs="*", default=[], help="key=value overrides (YAML values)")
@@ -320,6 +348,10 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     else:
         seeds = [0 if args.seed is None else args.seed]
         outs = [args.out]
+    for out in outs:
+        problem = missing_normalisation(out, hp)
+        if problem is not None:
+            usage_error(PROG, problem)
     payloads = [
         {
             "env_id": args.env,

@@ -6,8 +6,10 @@ argparse does for the arguments it checks itself; the message names the argument
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any, NoReturn
 
 
@@ -26,3 +28,11 @@ def json_object(prog: str, option: str, text: str) -> dict[str, Any]:
     if not isinstance(value, dict):
         usage_error(prog, f"{option} must be a JSON object, got {text!r}")
     return value
+
+
+def directory(text: str) -> Path:
+    """An argparse type for ``--out``: a folder's path; an empty one (``Path("")`` is the current folder)
+    is refused with exit 2."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"must name a directory, got {text!r}")
+    return Path(text)

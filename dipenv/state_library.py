@@ -10,13 +10,16 @@ Splits are disjoint ranges of packing seeds: ``train`` uses seeds ``0, 1, ...``,
 ``100000, ...`` and ``test`` ``200000, ...``, so enlarging a split keeps its existing states.
 
 Cache: ``$DIPENV_CACHE_DIR`` or ``$XDG_CACHE_HOME/dipenv`` (default ``~/.cache/dipenv``), then
-``states/<key>/``, where ``key`` hashes every parameter that shapes the states: the simulation config
-(all fields but the seed and the run length), the pre-shear and tail strains, the library format version
-and the simulator version ``sim.__version__`` (bump it when the dynamics change). A digest of the
-simulator's sources is recorded in ``library.json`` for provenance but is not part of the key: keying on
-it would regenerate the states, and invalidate every open-loop result keyed on them, at each edit of any
-file in ``sim/``. Files are written atomically (temporary name, then rename), so concurrent workers at
-worst repeat work.
+``states/<key>/``, where ``key`` hashes everything that shapes the states: the simulation config (all
+fields but the seed and the run length), the pre-shear and tail strains, the library format version and
+a digest of the simulator sources the pre-shear runs (:func:`physics_source_digest`: every ``.py`` file
+and data table of ``sim/`` but the command line, run files, figures, sweeps and tasks, which do not
+touch a trajectory). States made by other physics therefore live under another key and are never
+reused: an edit of the dynamics regenerates the states (and the open-loop results keyed on them), an
+edit of ``sim/cli.py`` does not. ``library.json`` records these parameters; a directory whose record
+differs from the library's (states copied from elsewhere, or a damaged record) is stale: its states are
+deleted and generated again, with a warning. Files are written atomically (temporary name, then rename),
+so concurrent workers at worst repeat work.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ import json
 import math
 import os
 import tempfile
+import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -38,8 +42,28 @@ from tqdm.auto import tqdm
 
 import sim
 
-LIBRARY_VERSION = 1
-"""Bump when the file layout or the generation protocol changes."""
+LIBRARY_VERSION = 2
+"""Bump when the file layout or the generation protocol changes (2: keyed on the physics sources instead
+of the hand-bumped ``sim.__version__``)."""
+
+PHYSICS_EXCLUDED = frozenset(
+    {
+        "__main__.py",
+        "cli.py",
+        "figures.py",
+        "flow_curve.py",
+        "io.py",
+        "run.py",
+        "run_observables.py",
+        "sweep.py",
+        "sweep_figures.py",
+        "tasks.py",
+    }
+)
+"""Files of ``sim/`` (paths relative to it) that do not shape a start state: the command line, a run's
+files and sampled observables, figures, sweeps, flow curves and the task engine. Everything else (the
+stepper, its kernels, geometry, hydrodynamics, dipolophoresis, stress, config, state, the numba settings,
+the data tables) is part of :func:`physics_source_digest`."""
 
 SPLITS = ("train", "validation", "test")
 SPLIT_SEED_OFFSET = {"train": 0, "validation": 100_000, "test": 200_000}
@@ -55,18 +79,41 @@ def cache_root() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dipenv"
 
 
+def source_digest(root: Path, exclude: frozenset[str] = frozenset()) -> str:
+    """SHA-256 (16 hex digits) of the relative paths and contents of the ``.py`` files and data tables
+    (``*/tables/*.txt``) under ``root``, less the relative paths in ``exclude``."""
+    digest = hashlib.sha256()
+    for path in sorted(list(root.rglob("*.py")) + list(root.glob("*/tables/*.txt"))):
+        relative = path.relative_to(root).as_posix()
+        if relative in exclude or "__pycache__" in path.parts:
+            continue
+        digest.update(relative.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def _simulator_root() -> Path | None:
+    spec = importlib.util.find_spec("sim")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
 @functools.lru_cache(maxsize=1)
 def simulator_source_digest() -> str:
     """SHA-256 (16 hex digits) of the simulator package's ``.py`` files and data tables."""
-    spec = importlib.util.find_spec("sim")
-    if spec is None or not spec.submodule_search_locations:
-        return "unknown"
-    root = Path(next(iter(spec.submodule_search_locations)))
-    digest = hashlib.sha256()
-    for path in sorted(list(root.rglob("*.py")) + list(root.glob("*/tables/*.txt"))):
-        digest.update(path.relative_to(root).as_posix().encode())
-        digest.update(path.read_bytes())
-    return digest.hexdigest()[:16]
+    root = _simulator_root()
+    return "unknown" if root is None else source_digest(root)
+
+
+@functools.lru_cache(maxsize=1)
+def physics_source_digest() -> str:
+    """:func:`source_digest` of the simulator sources that shape a trajectory (all but
+    :data:`PHYSICS_EXCLUDED`): part of the library key."""
+    root = _simulator_root()
+    if root is None:
+        raise RuntimeError("the simulator package 'sim' is not importable: its sources cannot be digested")
+    return source_digest(root, PHYSICS_EXCLUDED)
 
 
 @dataclass(frozen=True)
@@ -143,7 +190,7 @@ class StateLibrary:
             config.pop(name, None)
         return {
             "library_version": LIBRARY_VERSION,
-            "sim_version": sim.__version__,
+            "physics_source": physics_source_digest(),
             "preshear_strain": self.preshear_strain,
             "tail_strain": self.tail_strain,
             "config": config,
@@ -180,6 +227,7 @@ class StateLibrary:
 
     def ensure(self, splits: Iterable[str] = SPLITS, progress: bool = True) -> None:
         """Generate the missing states of ``splits`` (progress bar on stderr unless ``progress=False``)."""
+        self._discard_if_stale()
         todo = self.missing(list(splits))
         if not todo:
             return
@@ -194,6 +242,41 @@ class StateLibrary:
         )
         for split, index in tqdm(todo, desc=description, unit="state", disable=not progress, leave=False):
             self._generate(split, index)
+
+    def stale_reason(self) -> str | None:
+        """Why the states in :attr:`directory` are not this library's, or None (none there, or they are).
+
+        They are stale when ``library.json`` records other parameters than :meth:`parameters` (states
+        made elsewhere, e.g. copied from a cache of other simulator sources) or is missing or unreadable
+        while states are there."""
+        if not self.directory.is_dir():
+            return None
+        params = self.directory / "library.json"
+        try:
+            recorded = json.loads(params.read_text())
+        except (OSError, ValueError):
+            if any(self.directory.glob("*.npz")):
+                return f"{params} is missing or unreadable"
+            return None
+        expected = json.loads(json.dumps(self.parameters()))
+        differing = sorted(k for k in expected if recorded.get(k) != expected[k])
+        if not differing:
+            return None
+        listed = ", ".join(f"{k} ({recorded.get(k)!r} there, {expected[k]!r} now)" for k in differing)
+        return f"{params} records other parameters: {listed}"
+
+    def _discard_if_stale(self) -> None:
+        """Delete stale states (:meth:`stale_reason`) and their record, with a warning, so that they are
+        generated again."""
+        reason = self.stale_reason()
+        if reason is None:
+            return
+        warnings.warn(
+            f"start states in {self.directory} are stale ({reason}); generating them again", stacklevel=3
+        )
+        for path in self.directory.glob("*.npz"):
+            path.unlink(missing_ok=True)
+        (self.directory / "library.json").unlink(missing_ok=True)
 
     def _generate(self, split: str, index: int) -> None:
         seed = self.seed(split, index)
@@ -220,7 +303,7 @@ class StateLibrary:
     def load(self, split: str, index: int, progress: bool = True) -> StartState:
         """State ``index`` of ``split`` (its split is generated first if this state is missing)."""
         path = self.path(split, index)
-        if not path.exists():
+        if not path.exists() or self.stale_reason() is not None:
             self.ensure([split], progress=progress)
         with np.load(path) as data:
             return StartState(

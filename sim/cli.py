@@ -12,10 +12,12 @@
 cartesian product with ``--seeds``), the other options one value for every point.
 
 Exit status 0 on success, 2 on bad input (``python -m sim <command>: error: ...`` after the command's
-usage; the message names the flag and its valid range), 1 when a simulation fails (for ``sweep``: when
-any point failed; the others still run, and ``error.json`` in the failed point's folder holds the
-traceback), 130 when a sweep is interrupted (rerun the same command to resume it). With ``--json`` the
-last line on stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
+usage; the message names the flag and its valid range; for ``run`` also an ``--out`` that already holds
+a run, unless ``--resume`` continues it or ``--overwrite`` replaces it), 1 when a simulation fails (for
+``sweep``: when any point failed; the others still run, and ``error.json`` in the failed point's folder
+holds the traceback), 130 when a run or sweep is interrupted (Ctrl-C; the run's last checkpoint is
+kept: rerun with ``--resume``, or the same sweep command, to continue). With ``--json`` the last line on
+stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
 """
 
 from __future__ import annotations
@@ -61,6 +63,7 @@ FLAGS = {
     "ewald_accuracy": "--ewald-accuracy",
     "out_dir": "--out",
     "resume": "--resume",
+    "overwrite": "--overwrite",
     "rates": "--rates",
     "strain_per_rate": "--strain-per-rate",
 }
@@ -198,6 +201,13 @@ def positive_int(text: str) -> int:
     return value
 
 
+def _directory(text: str) -> str:
+    """``--out``: a folder's path; an empty one (which would mean the current folder) is refused."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(f"must name a directory, got {text!r}")
+    return text
+
+
 def _scheduler(text: str) -> str:
     """``--scheduler``: a Dask scheduler address, ``tcp://HOST:PORT`` (or another ``protocol://`` form)."""
     if not re.fullmatch(r"[a-z][a-z0-9+.-]*://\S+", text):
@@ -322,6 +332,7 @@ SIMULATION_OPTIONS = (
         "--out",
         "output directory (created; must not be a file): the run's files, or one folder per sweep point "
         "and sweep.json",
+        _directory,
     ),
     _Option(
         "--json",
@@ -367,10 +378,17 @@ def _add_run_arguments(run: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim run``."""
     _add_simulation_options(run, lists=False)
     run.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
-    run.add_argument(
+    existing = run.add_mutually_exclusive_group()
+    existing.add_argument(
         "--resume",
         action="store_true",
         help="continue from OUT/checkpoint.npz; only --strain may differ from that run (to extend it)",
+    )
+    existing.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="delete the files of the run already in OUT and start afresh (without --resume or "
+        "--overwrite, an OUT that holds a run, even one of the same parameters, is refused with exit 2)",
     )
 
 
@@ -453,7 +471,9 @@ def build_parser() -> argparse.ArgumentParser:
         "sweep's figures and figures/summary.csv.",
     )
     figures.add_argument("directory", metavar="DIR", help="a sweep folder (python -m sim sweep --out DIR)")
-    figures.add_argument("--out", default=None, help="folder of the figures (default DIR/figures)")
+    figures.add_argument(
+        "--out", type=_directory, default=None, help="folder of the figures (default DIR/figures)"
+    )
     figures.add_argument("--quiet", action="store_true", help="no notes on stdout")
     figures.set_defaults(parser=figures)
     flow_curve = sub.add_parser(
@@ -501,7 +521,9 @@ def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--down", action="store_true", help="add the sweep back down (hysteresis)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
-    parser.add_argument("--out", required=True, help="output directory (created; must not be a file)")
+    parser.add_argument(
+        "--out", type=_directory, required=True, help="output directory (created; must not be a file)"
+    )
     parser.add_argument(
         "--workers", type=positive_int, default=1,
         help="curves at once in local worker processes, >= 1 (1: in this process) (default 1)",
@@ -699,6 +721,7 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
             args.out,
             progress=False if args.quiet else None,
             resume=args.resume,
+            overwrite=args.overwrite,
             command=["python", "-m", "sim", *args_list],
             parameter_names=FLAGS,
         )
@@ -707,6 +730,15 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
     except SimulationError as exc:
         print(f"{parser.prog}: simulation failed: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        checkpoint = Path(args.out) / "checkpoint.npz"
+        kept = (
+            f"the last checkpoint, {checkpoint}, is kept: rerun with --resume to continue"
+            if checkpoint.exists()
+            else "no checkpoint had been written yet"
+        )
+        print(f"{parser.prog}: interrupted; {kept}", file=sys.stderr)
+        return 130
     if args.json:
         from sim.io import json_ready
 

@@ -22,15 +22,22 @@ A run directory holds:
                    ``msd_zz`` (units a^2; x non-affine) over all origins after the transient
 ``stress.png``     eta_r, N1, N2 against strain
 ================== ==================================================================================
+
+Every file but the plot is written atomically (:func:`atomic_file`: a temporary file in the same folder,
+then ``os.replace``): a run killed while writing leaves the previous version or the new one, never a
+truncated file.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import platform
-from collections.abc import Mapping
+import zipfile
+from collections.abc import Iterator, Mapping
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import numpy as np
 
@@ -85,9 +92,42 @@ def from_json_ready(value: Any) -> Any:
     return value
 
 
+TEMPORARY_SUFFIX = ".tmp"
+"""Suffix of the temporary files of :func:`atomic_file` (``.<name>.<pid>.tmp`` beside the file)."""
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path) -> Iterator[IO[bytes]]:
+    """A binary file handle whose contents replace ``path`` in one step when the block ends.
+
+    The data go to ``.<name>.<pid>.tmp`` in the same folder (so the final ``os.replace`` is a rename on
+    one file system), flushed to disk, then renamed over ``path``. If the block raises (or the process
+    is killed), ``path`` keeps its previous contents; the temporary file is removed on an exception.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}{TEMPORARY_SUFFIX}")
+    try:
+        with open(tmp, "wb") as handle:
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text_atomically(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_file`)."""
+    with atomic_file(path) as handle:
+        handle.write(text.encode())
+
+
 def write_json(path: Path, data: dict[str, Any]) -> None:
-    """Write ``data`` as indented standard JSON (non-finite numbers as strings, see :func:`json_ready`)."""
-    path.write_text(json.dumps(json_ready(data), indent=2) + "\n")
+    """Write ``data`` as indented standard JSON (non-finite numbers as strings, see :func:`json_ready`),
+    atomically (:func:`atomic_file`)."""
+    write_text_atomically(path, json.dumps(json_ready(data), indent=2) + "\n")
 
 
 def read_json(path: Path) -> dict[str, Any]:
@@ -160,9 +200,10 @@ def write_timeseries(path: Path, records: StepRecords) -> None:
     for label, a, b in _COMPONENTS:
         columns.append(total[:, a, b])
         header.append(f"total_{label}")
-    np.savetxt(
-        path, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt="%.10g"
-    )
+    with atomic_file(path) as handle:
+        np.savetxt(
+            handle, np.column_stack(columns), delimiter=",", header=",".join(header), comments="", fmt="%.10g"
+        )
 
 
 OBSERVABLE_PREFIX = "observable_"
@@ -182,22 +223,64 @@ def save_checkpoint(
     ``observables`` are stored under their names prefixed by :data:`OBSERVABLE_PREFIX`; read them back
     with :func:`load_checkpoint_observables`.
     """
-    tmp = path.with_name(path.name + ".tmp.npz")
     extra: dict[str, Any] = {f"{OBSERVABLE_PREFIX}{name}": v for name, v in (observables or {}).items()}
-    np.savez(
-        tmp,
-        config=np.array(json.dumps(config.to_dict())),
-        wall_seconds=np.array(wall_seconds),
-        **state.arrays(),
-        **records.arrays(),
-        **extra,
-    )
-    tmp.replace(path)
+    with atomic_file(path) as handle:
+        np.savez(
+            handle,
+            config=np.array(json.dumps(config.to_dict())),
+            wall_seconds=np.array(wall_seconds),
+            **state.arrays(),
+            **records.arrays(),
+            **extra,
+        )
+
+
+class CheckpointError(ValueError):
+    """A checkpoint file that cannot be read: the message names the file and what is wrong with it."""
+
+
+_UNREADABLE = (OSError, EOFError, ValueError, KeyError, TypeError, IndexError, zipfile.BadZipFile)
+"""What reading a damaged or foreign ``.npz`` can raise (numpy, zipfile, json, the config's checks)."""
+
+
+@contextlib.contextmanager
+def _open_checkpoint(path: Path) -> Iterator[Any]:
+    """The ``.npz`` archive at ``path`` (never unpickling), or :class:`CheckpointError` saying what is
+    wrong: a directory in its place, an empty file, a file that is not an ``.npz`` archive, a truncated
+    one, or one that lacks what a checkpoint holds. ``FileNotFoundError`` when nothing is there."""
+    path = Path(path)
+    if path.is_dir():
+        raise CheckpointError(f"{path} is a directory, not a checkpoint file")
+    if not path.exists():
+        raise FileNotFoundError(f"no checkpoint at {path}")
+    if path.stat().st_size == 0:
+        raise CheckpointError(f"{path} is empty (a run killed while writing it?)")
+    try:
+        data = np.load(path, allow_pickle=False)
+    except _UNREADABLE:
+        raise CheckpointError(f"{path} is not an .npz archive (or is truncated)") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise CheckpointError(f"{path} is a single .npy array, not a checkpoint archive")
+    with data:
+        try:
+            yield data
+        except KeyError as exc:
+            missing = str(exc.args[0] if exc.args else exc).removesuffix(" is not a file in the archive")
+            raise CheckpointError(
+                f"{path} is not a checkpoint of a run: it lacks {missing!r} (it holds "
+                f"{', '.join(data.files[:5]) or 'nothing'}{', ...' if len(data.files) > 5 else ''})"
+            ) from None
+        except _UNREADABLE as exc:
+            damaged = isinstance(exc, zipfile.BadZipFile | EOFError | OSError)
+            reason = "truncated or damaged" if damaged else "its contents are not those of a checkpoint"
+            raise CheckpointError(f"{path} cannot be read: {reason}") from None
 
 
 def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
-    """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without."""
-    with np.load(path) as data:
+    """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without.
+
+    Raises :class:`CheckpointError` for a file that is not a readable checkpoint."""
+    with _open_checkpoint(path) as data:
         return {
             name[len(OBSERVABLE_PREFIX) :]: np.array(data[name])
             for name in data.files
@@ -206,8 +289,14 @@ def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
 
 
 def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, StepRecords, float]:
-    """Inverse of :func:`save_checkpoint`."""
-    with np.load(path) as data:
+    """Inverse of :func:`save_checkpoint`.
+
+    Raises:
+        FileNotFoundError: nothing at ``path``.
+        CheckpointError: (a ``ValueError``) anything else that is not a readable checkpoint, named with
+            what is wrong (a directory, an empty, truncated, foreign or non-``.npz`` file).
+    """
+    with _open_checkpoint(path) as data:
         config = SimulationConfig.from_dict(json.loads(str(data["config"])))
         return (
             config,
@@ -219,14 +308,16 @@ def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, Step
 
 def save_final_state(path: Path, config: SimulationConfig, state: SimulationState) -> None:
     """``final_state.npz``: the state plus the box side."""
-    np.savez(path, box_length=np.array(config.box_length), **state.arrays())
+    with atomic_file(path) as handle:
+        np.savez(handle, box_length=np.array(config.box_length), **state.arrays())
 
 
 def write_pair_distribution(path: Path, arrays: Mapping[str, np.ndarray]) -> None:
     """``pair_distribution.npz``: the arrays of
     :meth:`sim.observables.pair_distribution.PairDistributionAccumulator.result_arrays`."""
     data: dict[str, Any] = dict(arrays)
-    np.savez(path, **data)
+    with atomic_file(path) as handle:
+        np.savez(handle, **data)
 
 
 def write_msd(path: Path, lag_times: np.ndarray, msd: np.ndarray) -> None:
@@ -241,11 +332,12 @@ def write_msd(path: Path, lag_times: np.ndarray, msd: np.ndarray) -> None:
     lag_times = np.asarray(lag_times, dtype=np.float64)
     msd = np.asarray(msd, dtype=np.float64)
     keep = np.isfinite(lag_times)
-    np.savetxt(
-        path,
-        np.column_stack([lag_times[keep], msd[keep]]).reshape(-1, 4),
-        delimiter=",",
-        header="lag_strain,msd_xx,msd_yy,msd_zz",
-        comments="",
-        fmt="%.10g",
-    )
+    with atomic_file(path) as handle:
+        np.savetxt(
+            handle,
+            np.column_stack([lag_times[keep], msd[keep]]).reshape(-1, 4),
+            delimiter=",",
+            header="lag_strain,msd_xx,msd_yy,msd_zz",
+            comments="",
+            fmt="%.10g",
+        )

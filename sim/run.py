@@ -6,11 +6,14 @@ resumed run continues them bit for bit."""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -68,6 +71,90 @@ def _check_output_directory(out: Path, names: Mapping[str, str] | None) -> None:
         raise ValueError(f"{_name('out_dir', names)} {out} exists and is not a directory")
 
 
+RUN_FILES = (
+    "params.json",
+    "checkpoint.npz",
+    "result.json",
+    "final_state.npz",
+    "timeseries.csv",
+    "pair_distribution.npz",
+    "msd.csv",
+    "stress.png",
+)
+"""The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run."""
+
+
+def _saved_config(out: Path) -> SimulationConfig | None:
+    """The configuration of the run in ``out`` (its ``params.json``, else its checkpoint), None if neither
+    can be read."""
+    try:
+        return SimulationConfig.from_dict(io.read_json(out / "params.json")["config"])
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    try:
+        return io.load_checkpoint(out / "checkpoint.npz")[0]
+    except Exception:  # missing or unreadable: nothing to compare with
+        return None
+
+
+def _check_run_folder(
+    out: Path, config: SimulationConfig, resume: bool, overwrite: bool, names: Mapping[str, str] | None
+) -> None:
+    """Refuse to start a fresh run in a folder that already holds a run (``ValueError``).
+
+    A folder holds a run when it holds one of :data:`RUN_FILES`. Without ``resume`` or ``overwrite`` such
+    a folder is refused, whether its run has other parameters (they are named), is an interrupted run of
+    the same parameters (continue it with ``resume``) or a finished one (a rerun would only repeat it bit
+    for bit: ``resume`` rewrites its results, ``overwrite`` runs it again).
+    """
+    out_flag, resume_flag, overwrite_flag = (_name(n, names) for n in ("out_dir", "resume", "overwrite"))
+    if resume and overwrite:
+        raise ValueError(f"{resume_flag} and {overwrite_flag} exclude each other")
+    if resume or overwrite or not out.is_dir():
+        return
+    present = [name for name in RUN_FILES if (out / name).exists()]
+    if not present:
+        return
+    ways = f"choose another {out_flag}, or give {overwrite_flag} to delete its files and start afresh"
+    saved = _saved_config(out)
+    if saved is None:
+        raise ValueError(
+            f"{out_flag} {out} holds files of another run ({', '.join(present)}) whose parameters cannot be "
+            f"read; {ways}"
+        )
+    old, new = saved.to_dict(), config.to_dict()
+    differing = [f for f in old if old[f] != new.get(f)]
+    if differing:
+        listed = ", ".join(f"{_name(f, names)} ({old[f]!r} there, {new[f]!r} requested)" for f in differing)
+        extend = (
+            f"; {resume_flag} continues it to the new {_name('strain', names)}"
+            if differing == ["strain"] and (out / "checkpoint.npz").exists()
+            else ""
+        )
+        raise ValueError(f"{out_flag} {out} holds a run with different parameters: {listed}{extend}; {ways}")
+    state = "a finished run" if (out / "result.json").exists() else "an interrupted run"
+    raise ValueError(
+        f"{out_flag} {out} already holds {state} of these parameters; give {resume_flag} to continue it "
+        f"(a finished run's results are rewritten, unchanged) or {overwrite_flag} to run it again from the "
+        "start"
+    )
+
+
+def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
+    """Delete the run files of ``out`` (and temporary files of :func:`sim.io.atomic_file`) but ``keep``.
+
+    Done before a run writes its ``params.json``, so that a run killed later never leaves the new
+    parameters beside the results of an earlier run."""
+    if not out.is_dir():
+        return
+    for name in RUN_FILES:
+        if name not in keep:
+            (out / name).unlink(missing_ok=True)
+    for name in RUN_FILES:
+        for tmp in out.glob(f".{name}.*{io.TEMPORARY_SUFFIX}"):
+            tmp.unlink(missing_ok=True)
+
+
 def _differing_parameters(saved: SimulationConfig, requested: SimulationConfig) -> list[str]:
     """Fields (other than ``strain``) in which two configurations differ."""
     old, new = saved.to_dict(), requested.to_dict()
@@ -85,7 +172,10 @@ def _load_resumable(
     resume = _name("resume", names)
     if not checkpoint.exists():
         raise FileNotFoundError(f"{resume}: no checkpoint at {checkpoint}")
-    saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
+    try:
+        saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
+    except io.CheckpointError as exc:
+        raise io.CheckpointError(f"{resume}: {exc}") from None
     differing = _differing_parameters(saved_config, config)
     if differing:
         old, new = saved_config.to_dict(), config.to_dict()
@@ -155,11 +245,16 @@ def run_simulation(
     command: list[str] | None = None,
     parameter_names: Mapping[str, str] | None = None,
     sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Run (or resume) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
     Every check of the input happens before anything is written: a refused run leaves no directory
-    behind.
+    behind, and a folder that already holds a run (any of :data:`RUN_FILES`) is refused unless
+    ``resume`` or ``overwrite`` is given, even for a rerun of the same parameters (see
+    :func:`_check_run_folder`). Before ``params.json`` is written, the files of the earlier run that the
+    new one will rewrite are deleted (with ``resume``, all but the checkpoint), so an interrupted run
+    never leaves stale results beside its parameters.
 
     Args:
         config: the run's parameters; ``strain`` must be > 0 and leave a sample after the transient.
@@ -169,6 +264,7 @@ def run_simulation(
         progress: show a progress bar; ``None`` means only when stderr is a terminal. Unless ``False``,
             a note goes to stderr before kernels are compiled (the first run of these sources).
         resume: continue from ``out_dir/checkpoint.npz``.
+        overwrite: start afresh in a folder that holds another run (or the same one), deleting its files.
         command: the command line, recorded in ``params.json``.
         parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
             the command line passes its flags. Field names by default.
@@ -190,11 +286,14 @@ def run_simulation(
         arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`).
 
     Raises:
-        ValueError: bad input (the message names the parameter); FileNotFoundError: ``resume`` without a
+        ValueError: bad input (the message names the parameter), a folder holding a run without
+        ``resume`` or ``overwrite``, or both of them; FileNotFoundError: ``resume`` without a
         checkpoint; NotImplementedError: a configuration the simulator does not support yet;
         SimulationError: a step failed.
     """
     names = parameter_names
+    if not str(out_dir).strip():  # Path("") would be the current folder
+        raise ValueError(f"{_name('out_dir', names)} must name a directory, got {str(out_dir)!r}")
     out = Path(out_dir)
     check_run_length(config, names)
     if not (
@@ -205,6 +304,7 @@ def run_simulation(
     ):
         raise ValueError(f"{_name('sample_interval', names)} must be finite and > 0, got {sample_interval!r}")
     _check_output_directory(out, names)
+    _check_run_folder(out, config, resume, overwrite, names)
     checkpoint = out / "checkpoint.npz"
     state: SimulationState | None = None
     records: StepRecords | None = None
@@ -212,7 +312,10 @@ def run_simulation(
     saved_observables: dict[str, np.ndarray] = {}
     if resume:
         state, records, wall_before = _load_resumable(checkpoint, config, names)
-        saved_observables = io.load_checkpoint_observables(checkpoint)
+        try:
+            saved_observables = io.load_checkpoint_observables(checkpoint)
+        except io.CheckpointError as exc:
+            raise io.CheckpointError(f"{_name('resume', names)}: {exc}") from None
     observables = RunObservables.for_run(config, float(sample_interval), records, saved_observables, names)
     if progress is not False and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
@@ -223,9 +326,38 @@ def run_simulation(
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"{_name('out_dir', names)} {out} cannot be created: {exc.strerror}") from exc
+    _remove_outputs(out, keep=("checkpoint.npz",) if resume else ())
     io.write_params(out, config, command)
     wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress, observables)
     return _write_results(sim, out, checkpoint, wall, observables)
+
+
+@contextlib.contextmanager
+def _deferred_interrupt() -> Iterator[Callable[[], bool]]:
+    """While the block runs, Ctrl-C (SIGINT) only sets a flag, which the yielded function reads.
+
+    A ``KeyboardInterrupt`` raised while a compiled kernel runs comes out of numba as a ``SystemError``
+    ("returned a result with an exception set") and would end the run as a failed simulation; deferred,
+    the step loop stops at the end of the current chunk of steps, with a checkpoint. A second Ctrl-C
+    puts the previous handler back, so a third interrupts at once. Outside the main thread (where no
+    handler can be set) nothing is deferred."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: False
+        return
+    pending = False
+    previous = signal.getsignal(signal.SIGINT)
+
+    def handler(signum: int, frame: Any) -> None:
+        nonlocal pending
+        if pending:
+            signal.signal(signal.SIGINT, previous)
+        pending = True
+
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield lambda: pending
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _advance_with_checkpoints(
@@ -240,9 +372,10 @@ def _advance_with_checkpoints(
 
     The step loop is stopped at every sample time (:meth:`Simulation.advance_to`; stopping never changes
     the trajectory), and a sample due at the end of a chunk is taken before that chunk's checkpoint, so a
-    checkpoint always holds the accumulators of its state. The progress bar appears after the first
-    chunk of steps, so that its clock (and its estimate of the time left) does not include compiling the
-    kernels.
+    checkpoint always holds the accumulators of its state. Ctrl-C is deferred to the end of the current
+    chunk (:func:`_deferred_interrupt`), where a checkpoint is written and ``KeyboardInterrupt`` raised.
+    The progress bar appears after the first chunk of steps, so that its clock (and its estimate of the
+    time left) does not include compiling the kernels.
     """
     config = sim.config
     start = time.perf_counter()
@@ -264,7 +397,8 @@ def _advance_with_checkpoints(
             bar.n = round(run_length(s), 6)
             bar.refresh()
         observables.sample_if_due(s)
-        if s.state.time >= next_checkpoint - 1e-9:
+        stop = interrupted()
+        if s.state.time >= next_checkpoint - 1e-9 or stop:
             io.save_checkpoint(
                 checkpoint,
                 config,
@@ -273,14 +407,18 @@ def _advance_with_checkpoints(
                 wall_before + time.perf_counter() - start,
                 observables.arrays(),
             )
-            next_checkpoint += config.checkpoint_every
+            if not stop:
+                next_checkpoint += config.checkpoint_every
+        if stop:  # Ctrl-C: stop here, at the end of a chunk, with the checkpoint just written
+            raise KeyboardInterrupt
 
     end = stop_time(config.duration, config.time_step)
     try:
-        observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
-        while sim.state.time < end:
-            target = min(observables.next_sample_time, config.duration)
-            sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
+        with _deferred_interrupt() as interrupted:
+            observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
+            while sim.state.time < end:
+                target = min(observables.next_sample_time, config.duration)
+                sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
     finally:
         if bar is not None:
             bar.close()

@@ -157,8 +157,8 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     if _can_resume(out, config):
         result = run_simulation(config, out, progress=False, resume=True, command=command)
         return {"status": "resumed", "result": result}
-    _remove(out, ("checkpoint.npz", "checkpoint.npz.tmp.npz"))
-    result = run_simulation(config, out, progress=False, command=command)
+    # the sweep has decided the folder's files are stale (or absent): the run replaces them
+    result = run_simulation(config, out, progress=False, command=command, overwrite=True)
     return {"status": "finished", "result": result}
 
 

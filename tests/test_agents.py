@@ -72,6 +72,7 @@ def test_hyperparameters_for_every_id() -> None:
         (train, ["--hyperparams", "gamma"], "--hyperparams"),
         (train, ["--env-kwargs", "{bad"], "--env-kwargs"),
         (train, ["--env-kwargs", "[1]"], "--env-kwargs"),
+        (train, ["--out", ""], "argument --out: must name a directory"),
         (train, ["--algo", "ppo", "--env", "dipenv/Unknown-v0"], "--env/--algo"),
         (open_loop, ["--env-kwargs", "{bad"], "--env-kwargs"),
         (open_loop, ["--mason", "1,abc"], "--mason"),

@@ -9,10 +9,14 @@ import json
 import math
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import sim.run
@@ -259,6 +263,134 @@ def test_resume_extends_the_strain(finished_run, tmp_path: Path, capsys) -> None
     assert status == 0
     result = json.loads(stdout.strip().splitlines()[-1])
     assert result["strain"] >= 0.04 and result["averaged_from_strain"] == 0.02
+
+
+def test_a_folder_holding_another_run_is_refused(finished_run, tmp_path: Path, capsys) -> None:
+    """Was: ``--seed 2 --out DIR`` over another run's folder overwrote it with exit 0. Refused (exit 2,
+    the folder and the differing flags named, files untouched); the same command again is refused with
+    the ways in; ``--overwrite`` replaces the run; ``--resume --overwrite`` is refused by argparse."""
+    out = tmp_path / "copy"
+    shutil.copytree(finished_run[0], out)
+    before = (out / "result.json").read_bytes()
+    status, _, err = run_cli([*RUN_ARGS[:-2], "--seed", "2", "--out", str(out)], capsys)
+    assert_refused(status, err, f"--out {out} holds a run with different parameters: --seed (1 there, 2 ")
+    assert "give --overwrite to delete its files" in err
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out)], capsys)
+    assert_refused(status, err, f"--out {out} already holds a finished run of these parameters; give ")
+    assert "give --resume to continue it" in err
+    assert (out / "result.json").read_bytes() == before
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out), "--resume", "--overwrite"], capsys)
+    assert status == 2 and "--overwrite: not allowed with argument --resume" in err
+    args = [*RUN_ARGS[:-2], "--seed", "2", "--out", str(out), "--overwrite", "--json"]
+    status, stdout, _ = run_cli(args, capsys)
+    assert status == 0 and json.loads(stdout.strip().splitlines()[-1])["seed"] == 2
+    assert json.loads((out / "params.json").read_text())["config"]["seed"] == 2
+
+
+def test_help_lists_overwrite(capsys) -> None:
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    assert "--overwrite" in capsys.readouterr().out
+
+
+def _truncated(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _foreign(path: Path) -> None:
+    with open(path, "wb") as handle:
+        np.savez(handle, x=np.zeros(3))
+
+
+def _pickled(path: Path) -> None:
+    with open(path, "wb") as handle:
+        np.savez(handle, config=np.array([{"a": 1}], dtype=object))
+
+
+def _single_array(path: Path) -> None:
+    with open(path, "wb") as handle:
+        np.save(handle, np.zeros(3))
+
+
+def _directory(path: Path) -> None:
+    path.unlink()
+    path.mkdir()
+
+
+BAD_CHECKPOINTS = [
+    (lambda p: p.write_bytes(b""), "is empty"),
+    (_truncated, "is not an .npz archive (or is truncated)"),
+    (lambda p: p.write_text("not a checkpoint\n"), "is not an .npz archive (or is truncated)"),
+    (_foreign, "is not a checkpoint of a run: it lacks 'config' (it holds x)"),
+    (_pickled, "cannot be read: its contents are not those of a checkpoint"),
+    (_single_array, "is a single .npy array, not a checkpoint archive"),
+    (_directory, "is a directory, not a checkpoint file"),
+]
+
+
+@pytest.mark.parametrize(("spoil", "what"), BAD_CHECKPOINTS)
+def test_resume_from_a_bad_checkpoint_exits_2_naming_it(
+    spoil: Callable[[Path], None], what: str, finished_run, tmp_path: Path, capsys
+) -> None:
+    """Was: a traceback (numpy's allow_pickle message, BadZipFile, IsADirectoryError, KeyError)."""
+    out = tmp_path / "copy"
+    shutil.copytree(finished_run[0], out)
+    checkpoint = out / "checkpoint.npz"
+    spoil(checkpoint)
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out), "--resume"], capsys)
+    assert_refused(status, err, f"--resume: {checkpoint} {what}")
+    assert "Traceback" not in err and "allow_pickle" not in err
+
+
+def test_empty_out_is_refused(tmp_path: Path, capsys) -> None:
+    """Was: ``--out ""`` wrote the run into the current folder."""
+    status, _, err = run_cli([*RUN_ARGS, "--out", ""], capsys)
+    assert_refused(status, err, "argument --out: must name a directory, got ''")
+    for command in (["figures", str(tmp_path), "--out", ""], ["sweep", "--out", " ", *RUN_ARGS[:-2]]):
+        with pytest.raises(SystemExit) as refused:
+            main(command)
+        assert refused.value.code == 2
+        assert "error: argument --out: must name a directory" in capsys.readouterr().err
+
+
+def test_interrupted_run_exits_130_keeping_its_checkpoint(
+    finished_run, tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """Was: Ctrl-C ended ``sim run`` with a traceback."""
+    out = tmp_path / "copy"
+    shutil.copytree(finished_run[0], out)
+    before = (out / "checkpoint.npz").read_bytes()
+
+    def interrupted(*args: object, **kwargs: object) -> float:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sim.run, "_advance_with_checkpoints", interrupted)
+    args = [*RUN_ARGS[:-4], "--strain", "0.04", "--seed", "1", "--out", str(out), "--resume"]
+    status, _, err = run_cli(args, capsys)
+    assert status == 130 and "Traceback" not in err
+    assert f"interrupted; the last checkpoint, {out / 'checkpoint.npz'}, is kept: rerun with --resume" in err
+    assert (out / "checkpoint.npz").read_bytes() == before
+
+
+def test_ctrl_c_in_a_real_process_exits_130(tmp_path: Path) -> None:
+    """SIGINT to ``python -m sim run`` once it is stepping: exit 130, a one-line note, no traceback."""
+    out = tmp_path / "o"
+    args = [*RUN_ARGS[:-4], "--strain", "30", "--seed", "1", "--out", str(out), "--quiet"]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sim", "run", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "params.json").exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "python -m sim run: interrupted;" in err and "Traceback" not in err
 
 
 def test_process_exit_status() -> None:

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import math
+import shutil
 from dataclasses import replace
 from pathlib import Path
 
@@ -10,6 +12,7 @@ import numpy as np
 import pytest
 
 import sim
+from dipenv import state_library
 from dipenv.actions import (
     ActuatorFilter,
     FieldStrengthMapping,
@@ -122,3 +125,57 @@ def test_library_generates_once_and_reloads(tmp_path: Path) -> None:
     mean = start.tail_average(0.05)
     assert mean.shape == (3,) and np.all(np.isfinite(mean))
     assert (library.directory / "library.json").exists()
+
+
+def _tiny_library(root: Path) -> StateLibrary:
+    config = sim.SimulationConfig(n_particles=32, volume_fraction=0.45, near_field_cutoff=3.0)
+    sizes = {"train": 1, "validation": 1, "test": 1}
+    return StateLibrary(config, preshear_strain=0.2, tail_strain=0.1, root=root, split_sizes=sizes)
+
+
+def test_library_key_tracks_the_physics_sources(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Was: keyed on the hand-bumped sim.__version__, so states made by older physics were reused. The
+    key holds a digest of the simulator sources a pre-shear runs: an edit of the stepper changes it (the
+    states are generated again under the new key), an edit of the command line does not."""
+    library = _tiny_library(tmp_path / "cache")
+    library.ensure(["train"], progress=False)
+    assert library.missing(["train"]) == []
+    key = library.key
+    monkeypatch.setattr(state_library, "physics_source_digest", lambda: "0" * 16)
+    assert library.key != key and library.missing(["train"]) == [("train", 0)]
+    monkeypatch.undo()
+
+    copy = tmp_path / "sim"
+    shutil.copytree(Path(sim.__file__).parent, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    before = state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED)
+    for name in state_library.PHYSICS_EXCLUDED:
+        assert (copy / name).exists(), name  # the list names files that exist
+    (copy / "cli.py").write_text((copy / "cli.py").read_text() + "\n# an edit of the command line\n")
+    assert state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED) == before
+    (copy / "stepper.py").write_text((copy / "stepper.py").read_text() + "\n# an edit of the dynamics\n")
+    edited = state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED)
+    assert edited != before
+    table = next(copy.glob("*/tables/*.txt"))  # the two-sphere tables are baked into the kernels
+    table.write_text(table.read_text() + "\n")
+    assert state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED) != edited
+
+
+def test_stale_states_in_the_library_folder_are_generated_again(tmp_path: Path) -> None:
+    """Was: the recorded source digest was never checked. States whose library.json records other
+    parameters (here: other physics sources) are deleted and generated again, with a warning."""
+    library = _tiny_library(tmp_path)
+    path = library.path("train", 0)
+    library.directory.mkdir(parents=True)
+    record = {**library.parameters(), "physics_source": "0123456789abcdef"}
+    (library.directory / "library.json").write_text(json.dumps(record))
+    np.savez(path, not_a_state=np.zeros(1))  # states of other physics
+    assert "physics_source ('0123456789abcdef' there" in str(library.stale_reason())
+    with pytest.warns(UserWarning, match="are stale"):
+        start = library.load("train", 0, progress=False)
+    assert start.seed == 0 and library.stale_reason() is None
+    assert json.loads((library.directory / "library.json").read_text())["physics_source"] == (
+        state_library.physics_source_digest()
+    )
+    stamp = path.stat().st_mtime_ns
+    library.load("train", 0, progress=False)  # not stale any more: reused
+    assert path.stat().st_mtime_ns == stamp

@@ -3,7 +3,10 @@ and a progress bar whose clock starts after compilation."""
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import signal
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +54,8 @@ def test_refused_runs_write_nothing(tmp_path: Path) -> None:
     existing.write_text("x")
     with pytest.raises(ValueError, match="exists and is not a directory"):
         run_simulation(SHORT, existing, progress=False)
+    with pytest.raises(ValueError, match="out_dir must name a directory, got ''"):
+        run_simulation(SHORT, "", progress=False)
     with pytest.raises(FileNotFoundError, match="resume: no checkpoint at"):
         run_simulation(SHORT, tmp_path / "none", progress=False, resume=True)
     assert not (tmp_path / "none").exists()
@@ -248,3 +253,146 @@ def test_compiled_kernels_cached_reads_this_checkouts_cache(tmp_path: Path, monk
     (tmp_path / "empty" / "elsewhere_0123").mkdir()  # another checkout's kernels do not count
     (tmp_path / "empty" / "elsewhere_0123" / "stepper.advance-1.py311.nbi").write_bytes(b"")
     assert not compiled_kernels_cached()
+
+
+def test_a_folder_holding_another_run_is_refused_unless_resumed_or_overwritten(tmp_path: Path) -> None:
+    """Was: a run with another seed overwrote the folder's run with no complaint. A folder holding a run
+    is refused (naming the differing parameters) and left untouched; the same parameters are refused too,
+    with the ways in; ``overwrite`` replaces the run, ``resume`` and ``overwrite`` exclude each other."""
+    out = tmp_path / "o"
+    run_simulation(SHORT, out, progress=False)
+    before = {name: (out / name).read_bytes() for name in ("params.json", "result.json", "checkpoint.npz")}
+    other = dataclasses.replace(SHORT, seed=4)
+    with pytest.raises(ValueError) as refused:
+        run_simulation(other, out, progress=False)
+    message = str(refused.value)
+    assert f"out_dir {out} holds a run with different parameters: seed (3 there, 4 requested)" in message
+    assert "n_particles" not in message and "overwrite" in message
+    with pytest.raises(ValueError, match="resume continues it to the new strain"):
+        run_simulation(LONG, out, progress=False)
+    with pytest.raises(ValueError, match="already holds a finished run of these parameters; give resume"):
+        run_simulation(SHORT, out, progress=False)
+    with pytest.raises(ValueError, match="resume and overwrite exclude each other"):
+        run_simulation(SHORT, out, progress=False, resume=True, overwrite=True)
+    assert {name: (out / name).read_bytes() for name in before} == before
+    (out / "result.json").unlink()
+    with pytest.raises(ValueError, match="already holds an interrupted run of these parameters"):
+        run_simulation(SHORT, out, progress=False)
+    (out / "params.json").write_text("{")  # unreadable: the checkpoint tells the parameters
+    with pytest.raises(ValueError, match=r"seed \(3 there, 4 requested\)"):
+        run_simulation(other, out, progress=False)
+    (out / "checkpoint.npz").unlink()
+    with pytest.raises(ValueError, match="holds files of another run .*params.json.* cannot be read"):
+        run_simulation(other, out, progress=False)
+    result = run_simulation(other, out, progress=False, overwrite=True)
+    assert result["seed"] == 4 and sim.io.read_json(out / "result.json")["seed"] == 4
+    assert sim.io.read_json(out / "params.json")["config"]["seed"] == 4
+    (tmp_path / "unrelated").mkdir()
+    (tmp_path / "unrelated" / "notes.txt").write_text("x")  # no run files: a fresh run may go there
+    run_simulation(SHORT, tmp_path / "unrelated", progress=False)
+
+
+@pytest.mark.parametrize("resume", [False, True])
+def test_an_interrupted_rerun_leaves_no_old_result_beside_its_parameters(
+    tmp_path: Path, monkeypatch, resume: bool
+) -> None:
+    """Was: killed mid-run, a new run left its params.json beside the old run's result.json. The earlier
+    run's results are deleted before the new parameters are written (a resume keeps the checkpoint)."""
+    out = tmp_path / "o"
+    run_simulation(SHORT, out, progress=False)
+
+    def killed(*args: Any, **kwargs: Any) -> float:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(sim.run, "_advance_with_checkpoints", killed)
+    new = LONG if resume else dataclasses.replace(SHORT, seed=4)
+    with pytest.raises(KeyboardInterrupt):
+        run_simulation(new, out, progress=False, resume=resume, overwrite=not resume)
+    assert SimulationConfig.from_dict(sim.io.read_json(out / "params.json")["config"]) == new
+    left = sorted(p.name for p in out.iterdir())
+    assert left == (["checkpoint.npz", "params.json"] if resume else ["params.json"])
+
+
+def _partial_then_fail(file: Any, *args: Any, **kwargs: Any) -> None:
+    """Stands in for np.savez / np.savetxt on a full disk: half a file, then an error."""
+    handle = open(file, "wb") if isinstance(file, str | Path) else file  # noqa: SIM115
+    handle.write(b"half a file")
+    raise OSError("No space left on device")
+
+
+_STATE = SimulationState.initial(np.zeros((2, 3)))
+_RECORDS = sim.StepRecords.empty()
+_WRITERS = {
+    "checkpoint.npz": lambda p: sim.io.save_checkpoint(p, SHORT, _STATE, _RECORDS, 0.0),
+    "final_state.npz": lambda p: sim.io.save_final_state(p, SHORT, _STATE),
+    "pair_distribution.npz": lambda p: sim.io.write_pair_distribution(p, {"g_r": np.ones(3)}),
+    "timeseries.csv": lambda p: sim.io.write_timeseries(p, _RECORDS),
+    "msd.csv": lambda p: sim.io.write_msd(p, np.ones(2), np.ones((2, 3))),
+}
+
+
+@pytest.mark.parametrize("name", sorted(_WRITERS))
+def test_result_files_are_written_atomically(tmp_path: Path, monkeypatch, name: str) -> None:
+    """Was: np.savez / np.savetxt straight into the file, so a failure (full disk, a kill) half-way left
+    a truncated file. A write that fails half-way keeps the previous file whole, with no temporary file
+    left; a write that succeeds replaces it."""
+    path = tmp_path / name
+    _WRITERS[name](path)
+    written = path.read_bytes()
+    path.write_bytes(b"previous")
+    with monkeypatch.context() as patch:
+        patch.setattr(sim.io.np, "savez" if name.endswith(".npz") else "savetxt", _partial_then_fail)
+        with pytest.raises(OSError, match="No space left"):
+            _WRITERS[name](path)
+    assert path.read_bytes() == b"previous"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+    _WRITERS[name](path)
+    assert path.read_bytes() == written or name.endswith(".npz")  # npz: zip timestamps may differ
+
+
+def test_json_goes_through_atomic_file(tmp_path: Path) -> None:
+    """``result.json`` and ``params.json`` are written by :func:`sim.io.write_json`, atomically."""
+    path = tmp_path / "result.json"
+    path.write_text("previous")
+    with pytest.raises(RuntimeError), sim.io.atomic_file(path) as handle:
+        handle.write(b"{half")
+        raise RuntimeError("killed")
+    assert path.read_text() == "previous" and [p.name for p in tmp_path.iterdir()] == ["result.json"]
+    sim.io.write_json(path, {"a": float("nan")})
+    assert sim.io.read_json(path)["a"] != sim.io.read_json(path)["a"]
+    assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
+
+
+def test_ctrl_c_stops_at_the_end_of_a_chunk_with_a_checkpoint(tmp_path: Path, monkeypatch) -> None:
+    """Ctrl-C inside a compiled kernel came out as a SystemError (a failed simulation). It is deferred to
+    the end of the chunk of steps, where a checkpoint is written; resuming from it gives the
+    uninterrupted run's numbers bit for bit."""
+    config = dataclasses.replace(SHORT, strain=0.3, transient_strain=0.1)  # 150 steps, several chunks
+
+    @contextlib.contextmanager
+    def pressed_at_once() -> Iterator[Callable[[], bool]]:
+        yield lambda: True
+
+    with monkeypatch.context() as patch:
+        patch.setattr(sim.run, "_deferred_interrupt", pressed_at_once)
+        with pytest.raises(KeyboardInterrupt):
+            run_simulation(config, tmp_path / "cut", progress=False)
+    _, state, _, _ = sim.io.load_checkpoint(tmp_path / "cut" / "checkpoint.npz")
+    assert 0.0 < state.strain < 0.3 and not (tmp_path / "cut" / "result.json").exists()
+    resumed = run_simulation(config, tmp_path / "cut", progress=False, resume=True)
+    direct = run_simulation(config, tmp_path / "direct", progress=False)
+    for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "min_gap", "msd_samples"):
+        assert resumed[key] == direct[key], key
+    _assert_same_observables(tmp_path / "cut", tmp_path / "direct")
+    assert (tmp_path / "cut" / "timeseries.csv").read_text() == (
+        tmp_path / "direct" / "timeseries.csv"
+    ).read_text()
+
+
+def test_deferred_interrupt_sets_a_flag_then_restores_the_handler() -> None:
+    previous = signal.getsignal(signal.SIGINT)
+    with sim.run._deferred_interrupt() as interrupted:
+        assert not interrupted()
+        signal.raise_signal(signal.SIGINT)  # no KeyboardInterrupt here
+        assert interrupted()
+    assert signal.getsignal(signal.SIGINT) is previous

@@ -1,0 +1,91 @@
+"""agents.evaluate and agents.train refuse what would make their numbers silently wrong: a policy trained
+with observation normalisation whose statistics are missing (evaluate; train on resume), and policies
+compared with a baseline played on other start states (another split, another start-state library)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from agents import evaluate, open_loop, train
+
+ENV = "dipenv/FieldMagnitudeTiny-v0"
+SHORT = ["n_steps=32", "batch_size=32", "n_epochs=2", "eval_freq=64", "checkpoint_freq=32"]
+COMMON = ["--env", ENV, "--n-envs", "1", "--no-progress", "--algo", "ppo", "--seed", "0"]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """A one-state open-loop baseline (test split) and a 64-step PPO run: (baseline, run)."""
+    root = tmp_path_factory.mktemp("agents_refusals")
+    patcher = pytest.MonkeyPatch()
+    patcher.setenv("DIPENV_CACHE_DIR", str(root / "cache"))
+    baseline, run = root / "open_loop", root / "ppo"
+    open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1", "--episodes", "1"])
+    train.main([*COMMON, "--timesteps", "64", "--out", str(run), "--hyperparams", *SHORT])
+    yield baseline, run
+    patcher.undo()
+
+
+def _refused(capsys: pytest.CaptureFixture[str], module: object, arguments: list[str]) -> str:
+    with pytest.raises(SystemExit) as exit_:
+        module.main(arguments)  # type: ignore[attr-defined]
+    err = capsys.readouterr().err
+    assert exit_.value.code == 2, err
+    assert f"python -m agents.{module.__name__.split('.')[-1]}: error: " in err  # type: ignore[attr-defined]
+    return err
+
+
+def test_evaluate_refuses_a_run_without_its_normalisation(trained, tmp_path: Path, capsys) -> None:
+    """Was: without vecnormalize.pkl the policy played raw observations and a verdict was printed."""
+    baseline, run = trained
+    copy = tmp_path / "ppo"
+    shutil.copytree(run, copy)
+    (copy / "vecnormalize.pkl").unlink()
+    out = tmp_path / "evaluation"
+    err = _refused(capsys, evaluate, [str(copy), "--baseline", str(baseline), "--out", str(out)])
+    assert f"{copy / 'vecnormalize.pkl'} are missing" in err and "VecNormalize" in err
+    assert not out.exists()
+
+
+def test_evaluate_refuses_other_start_states(trained, tmp_path: Path, capsys) -> None:
+    """Was: ``--split train`` against a test-split baseline, and a baseline of another start-state
+    library, were compared "on the same states" (the library only warned)."""
+    baseline, run = trained
+    out = tmp_path / "evaluation"
+    err = _refused(
+        capsys, evaluate, [str(run), "--baseline", str(baseline), "--out", str(out), "--split", "train"]
+    )
+    assert "--split train: the --baseline" in err and "was played on the test start states" in err
+    other = tmp_path / "other_baseline"
+    shutil.copytree(baseline, other)
+    pareto = json.loads((other / "pareto.json").read_text())
+    (other / "pareto.json").write_text(json.dumps({**pareto, "library_key": "0123456789abcdef"}))
+    err = _refused(capsys, evaluate, [str(run), "--baseline", str(other), "--out", str(out)])
+    assert "the --baseline those of library 0123456789abcdef" in err and "RUN_DIRS: " in err
+    assert not out.exists()
+    # the same states: accepted
+    result = evaluate.main([str(run), "--baseline", str(baseline), "--out", str(out)])
+    assert any(r["name"].startswith("ppo (") for r in result["rows"])
+
+
+def test_train_refuses_to_resume_without_the_checkpoints_normalisation(
+    trained, tmp_path: Path, capsys
+) -> None:
+    """Was: a resumed run started from fresh VecNormalize statistics when the checkpoint's were missing."""
+    _, run = trained
+    copy = tmp_path / "ppo"
+    shutil.copytree(run, copy)
+    train.main([*COMMON, "--timesteps", "64", "--out", str(copy), "--hyperparams", *SHORT])  # finished: fine
+    for stats in (copy / "checkpoints").glob("ckpt_vecnormalize_*_steps.pkl"):
+        stats.unlink()
+    (copy / "result.json").unlink()  # interrupted: it would resume from its latest checkpoint
+    before = sorted(p.name for p in copy.rglob("*"))
+    err = _refused(
+        capsys, train, [*COMMON, "--timesteps", "128", "--out", str(copy), "--hyperparams", *SHORT]
+    )
+    assert "ckpt_vecnormalize_64_steps.pkl, which is missing" in err and f"--out {copy}" in err
+    assert sorted(p.name for p in copy.rglob("*")) == before
