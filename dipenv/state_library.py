@@ -13,8 +13,9 @@ Cache: ``$DIPENV_CACHE_DIR`` or ``$XDG_CACHE_HOME/dipenv`` (default ``~/.cache/d
 ``states/<key>/``, where ``key`` hashes everything that shapes the states: the simulation config (all
 fields but the seed and the run length), the pre-shear and tail strains, the library format version and
 a digest of the simulator sources the pre-shear runs (:func:`physics_source_digest`: every ``.py`` file
-and data table of ``sim/`` but the command line, run files, figures, sweeps and tasks, which do not
-touch a trajectory). States made by other physics therefore live under another key and are never
+of ``sim/`` but those listed in :data:`PHYSICS_EXCLUDED`: the field's kernels, which a field-free
+pre-shear never runs, and the command line, run files, figures, sweeps and tasks, which do not touch a
+trajectory). States made by other physics therefore live under another key and are never
 reused: an edit of the dynamics regenerates the states (and the open-loop results keyed on them), an
 edit of ``sim/cli.py`` does not. ``library.json`` records these parameters; a directory whose record
 differs from the library's (states copied from elsewhere, or a damaged record) is stale: its states are
@@ -48,6 +49,12 @@ of the hand-bumped ``sim.__version__``)."""
 
 PHYSICS_EXCLUDED = frozenset(
     {
+        "dipolophoresis/",
+        "observables/diffusion.py",
+        "observables/layering.py",
+        "observables/microstructure.py",
+        "observables/pair_distribution.py",
+        "variants.py",
         "__main__.py",
         "cli.py",
         "figures.py",
@@ -60,10 +67,13 @@ PHYSICS_EXCLUDED = frozenset(
         "tasks.py",
     }
 )
-"""Files of ``sim/`` (paths relative to it) that do not shape a start state: the command line, a run's
-files and sampled observables, figures, sweeps, flow curves and the task engine. Everything else (the
-stepper, its kernels, geometry, hydrodynamics, dipolophoresis, stress, config, state, the numba settings,
-the data tables) is part of :func:`physics_source_digest`."""
+"""Files of ``sim/`` (paths relative to it; a trailing ``/`` names a whole subpackage) that do not shape a
+start state: the pre-shear runs without a field, so the dipolophoresis kernels and their tables never run;
+the command line, a run's files and sampled observables (g(r), MSD, fabric, layering), figures, sweeps,
+flow curves, rate schedules and the task engine do not touch its trajectory. Everything else (the
+stepper, geometry, hydrodynamics, contacts, the stress, config, state, the numba settings) is part of
+:func:`physics_source_digest`. So a speed-up of the field's kernels keeps the start states and every
+result keyed on them."""
 
 SPLITS = ("train", "validation", "test")
 SPLIT_SEED_OFFSET = {"train": 0, "validation": 100_000, "test": 200_000}
@@ -81,11 +91,14 @@ def cache_root() -> Path:
 
 def source_digest(root: Path, exclude: frozenset[str] = frozenset()) -> str:
     """SHA-256 (16 hex digits) of the relative paths and contents of the ``.py`` files and data tables
-    (``*/tables/*.txt``) under ``root``, less the relative paths in ``exclude``."""
+    (``*/tables/*.txt``) under ``root``, less the relative paths in ``exclude`` (an entry ending in ``/``
+excludes everything under that folder)."""
     digest = hashlib.sha256()
     for path in sorted(list(root.rglob("*.py")) + list(root.glob("*/tables/*.txt"))):
         relative = path.relative_to(root).as_posix()
-        if relative in exclude or "__pycache__" in path.parts:
+        if "__pycache__" in path.parts or any(
+            relative == item or (item.endswith("/") and relative.startswith(item)) for item in exclude
+        ):
             continue
         digest.update(relative.encode())
         digest.update(path.read_bytes())
