@@ -1,7 +1,13 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
-    python -m agents.evaluate RUN_DIRS... --baseline OPEN_LOOP_DIR --out DIR [--split test] [--episodes N]
-        [--model final|best] [--actions mean|sampled|both] [--workers 2] [--scheduler ADDRESS]
+    python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
+        [--split test] [--episodes N] [--model final|best] [--actions mean|sampled|both] [--workers 2]
+        [--scheduler ADDRESS]
+
+``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
+constant fields (played on the same split, start states and schedules, else exit 2). For the
+thickening-control environments the table adds the whole-episode metrics of :mod:`agents.rollout`: the
+fraction of intervals above the cap, the excess ``eta_r`` over it and the field energy.
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
@@ -119,6 +125,35 @@ def check_same_states(
     usage_error(PROG, message)
 
 
+def load_controller(
+    folder: Path, pareto: dict[str, Any], split: str, indices: list[int]
+) -> tuple[str, dict[str, Any]]:
+    """The tuned controller of an ``agents.controllers`` folder as ``(row name, record)``; exit 2 unless it
+    was played in the baseline's env on the same start states and schedules (split, library, indices)."""
+    summary_file = folder / "controller.json"
+    if not summary_file.is_file():
+        usage_error(PROG, f"--controllers: {folder} holds no controller.json (an agents.controllers output)")
+    summary = read_json(summary_file)
+    record_file = folder / "points" / f"{summary['label']}.json"
+    if not record_file.is_file():
+        usage_error(PROG, f"--controllers: {record_file} is missing (rerun the agents.controllers command)")
+    record = read_json(record_file)
+    played = {e["index"] for e in record["episodes"]}
+    problems = []
+    if summary["env_id"] != pareto["env_id"]:
+        problems.append(f"env {summary['env_id']} (the baseline's: {pareto['env_id']})")
+    if summary["split"] != split:
+        problems.append(f"split {summary['split']} (evaluated: {split})")
+    if summary.get("library_key") != pareto.get("library_key"):
+        problems.append(f"start-state library {summary.get('library_key')} ({pareto.get('library_key')})")
+    if not set(indices) <= played:
+        problems.append(f"states {sorted(played)} (needed: {indices})")
+    if problems:
+        usage_error(PROG, f"--controllers: {folder} was played on other episodes: " + "; ".join(problems))
+    params = ", ".join(f"{k} {v:g}" for k, v in summary["tuned_params"].items())
+    return f"{summary['controller']} ({params}; tuned on {summary['tune_split']})", record
+
+
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
@@ -179,15 +214,27 @@ def _stats(values: list[float], iqm: bool) -> dict[str, float]:
     }
 
 
+THICKENING_METRICS = (
+    ("time_above_cap", "time_above_cap"),
+    ("excess_viscosity", "excess_viscosity"),
+    ("energy_mean", "energy_mean"),
+)
+"""Whole-episode metrics of the thickening-control environments (:mod:`agents.rollout`), reported where
+the episodes carry them."""
+
+
+def _metrics(episodes: list[dict[str, Any]]) -> tuple[tuple[str, str], ...]:
+    base = (("eta", "eta_second_half"), ("energy", "energy_second_half"), ("return", "return"))
+    if episodes and all("excess_viscosity" in e for e in episodes):
+        return base + THICKENING_METRICS
+    return base
+
+
 def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]:
     """Per-seed averages over episodes, then mean / 95% CI / IQM (>= 5 seeds) over seeds."""
     per_seed = {
         metric: [float(np.nanmean([e[key] for e in r["episodes"]])) for r in records]
-        for metric, key in (
-            ("eta", "eta_second_half"),
-            ("energy", "energy_second_half"),
-            ("return", "return"),
-        )
+        for metric, key in _metrics([e for r in records for e in r["episodes"]])
     }
     iqm = len(records) >= 5
     return {
@@ -206,14 +253,7 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
         "name": name,
         "samples": f"{len(episodes)} start states",
         "failures": sum(bool(e["failed"]) for e in episodes),
-        **{
-            metric: _stats([e[key] for e in episodes], False)
-            for metric, key in (
-                ("eta", "eta_second_half"),
-                ("energy", "energy_second_half"),
-                ("return", "return"),
-            )
-        },
+        **{metric: _stats([e[key] for e in episodes], False) for metric, key in _metrics(episodes)},
     }
 
 
@@ -228,17 +268,25 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     def cell(s: dict[str, float], digits: int = 3) -> str:
         return format_interval(s["mean"], s["ci_low"], s["ci_high"], f".{digits}f")
 
+    thickening = bool(rows) and all("excess_viscosity" in r for r in rows)
+    extra_head = (
+        " time above cap | excess eta_r over cap | field energy, whole episode |" if thickening else ""
+    )
     lines = [
         "| policy | samples | eta_r, 2nd half: mean [95% CI] | IQM | field energy <1/Mn> | return "
-        "| IQM return | failures |",
-        "|---|---|---|---|---|---|---|---|",
+        "| IQM return | failures |" + extra_head,
+        "|---|---|---|---|---|---|---|---|" + ("---|---|---|" if thickening else ""),
     ]
     for r in rows:
         iqm_eta = "" if math.isnan(r["eta"]["iqm"]) else f"{r['eta']['iqm']:.3f}"
         iqm_ret = "" if math.isnan(r["return"]["iqm"]) else f"{r['return']['iqm']:.2f}"
+        extra = ""
+        if thickening:
+            above, excess = cell(r["time_above_cap"], 2), cell(r["excess_viscosity"])
+            extra = f" {above} | {excess} | {cell(r['energy_mean'])} |"
         lines.append(
             f"| {r['name']} | {r['samples']} | {cell(r['eta'])} | {iqm_eta} | {cell(r['energy'])} | "
-            f"{cell(r['return'], 2)} | {iqm_ret} | {r['failures']} |"
+            f"{cell(r['return'], 2)} | {iqm_ret} | {r['failures']} |" + extra
         )
     return "\n".join(lines)
 
@@ -372,7 +420,14 @@ def build_parser() -> argparse.ArgumentParser:
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("runs", nargs="+", type=Path, help="run folders or folders of them")
+    parser.add_argument("runs", nargs="*", type=Path, help="run folders or folders of them")
+    parser.add_argument(
+        "--controllers",
+        nargs="+",
+        type=Path,
+        default=[],
+        help="agents.controllers output folders: each tuned controller is a row",
+    )
     parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
@@ -396,8 +451,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = build_parser().parse_args(argv)
+    if not args.runs and not args.controllers:
+        usage_error(
+            PROG, "give RUN_DIRS (trained runs) or --controllers (agents.controllers folders), or both"
+        )
     pareto = read_json(args.baseline / "pareto.json")
-    groups = find_runs(args.runs)
+    groups = find_runs(args.runs) if args.runs else {}
     configs = {
         run: yaml.safe_load((run / "config.yml").read_text()) for runs in groups.values() for run in runs
     }
@@ -419,7 +478,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     check_same_states(library_keys, pareto, configs)
     # The baseline's stored returns belong to the reward it was last scored with; rescore them with the
     # reward of the env the policies were trained in (the physics of a constant field does not depend on it).
-    config = next(iter(configs.values()))
+    config = next(iter(configs.values())) if configs else pareto
     probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
     probe.close()
@@ -477,12 +536,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
     )
+    controllers = [load_controller(folder, pareto, split, indices) for folder in args.controllers]
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
     check_same_states({Path(r["run"]): r["library_key"] for r in records}, pareto, configs)
     by_label = {p["label"]: p for p in points}
     best = max(summary, key=lambda r: r["return"])  # for this reward
     best_name = f"best constant ({best['label']})"
     baselines = [("no field", by_label.get("off")), (best_name, by_label.get(best["label"]))]
+    baselines += controllers
     baseline_rows = [
         aggregate_baseline(name, record, indices) for name, record in baselines if record is not None
     ]
@@ -491,7 +552,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     rows = baseline_rows + policy_rows
     table = format_table(rows)
     header = (
-        f"Environment {records[0]['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
+        f"Environment {pareto['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
         "averages over the second half of each episode (energy in eta gammadot per unit strain); intervals "
         "are 95% Student-t over training seeds (policies) or start states (constant fields). Returns for "
         f"the reward of the policies' env: target eta_r {reward.target_viscosity:g}, energy weight "

@@ -176,3 +176,44 @@ def test_feedforward_is_refused_on_the_stress_only_env(
         )
     assert exit_info.value.code == 2
     assert "log10_shear_rate" in capsys.readouterr().err
+
+
+def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """agents.evaluate --controllers: a tuned controller is a row of the table, with the thickening
+    metrics (time above the cap, excess eta_r, whole-episode energy); a controller played on other
+    episodes than the baseline's is refused (exit 2)."""
+    from agents import evaluate, open_loop
+
+    ff = tmp_path / "ff"
+    common = ["--env", TINY, "--out"]
+    controllers.main(
+        ["--controller", "feedforward", "--grid", "mason_star=1", "--tune-episodes", "1", "--episodes", "2"]
+        + common
+        + [str(ff)]
+    )
+    baseline = tmp_path / "open_loop"
+    open_loop.main([*common, str(baseline), "--mason", "off,1", "--split", "test", "--episodes", "2"])
+    out = tmp_path / "eval"
+    result = evaluate.main(["--controllers", str(ff), "--baseline", str(baseline), "--out", str(out)])
+    names = [r["name"] for r in result["rows"]]
+    assert names[-1].startswith("feedforward (mason_star 1; tuned on validation)")
+    row = result["rows"][-1]
+    record = json.loads(next((ff / "points").glob("*.json")).read_text())
+    expected = np.mean([e["excess_viscosity"] for e in record["episodes"]])
+    assert row["excess_viscosity"]["mean"] == pytest.approx(expected, rel=1e-12)
+    assert "time above cap" in (out / "table.md").read_text()
+    assert (out / "traces.png").exists()
+
+    other = tmp_path / "ff_validation"
+    controllers.main(
+        ["--controller", "feedforward", "--grid", "mason_star=1", "--tune-episodes", "1"]
+        + ["--split", "validation", "--episodes", "1"]
+        + common
+        + [str(other)]
+    )
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["--controllers", str(other), "--baseline", str(baseline), "--out", str(out)])
+    assert exit_info.value.code == 2
+    assert "split validation" in capsys.readouterr().err
