@@ -175,7 +175,7 @@ class Plan(NamedTuple):
 
 
 DEFAULTS = Plan(sizes="64,250,500,1000,2000,4000", steps=500, warmup_strain=3.0, masons="inf,1,0.1")
-"""The measurement of the README table."""
+"""The measurement of the table in docs/benchmarks.md."""
 
 QUICK = Plan(sizes="64,250,500", steps=300, warmup_strain=2.0, masons="inf,1")
 """``--quick``: the same measurement, smaller (about 20 s with compiled kernels, a minute more without);
@@ -249,7 +249,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--quick",
         action="store_true",
         help="smaller defaults for a check that finishes in under a minute once the kernels are compiled "
-        "(explicit options still win); noisier than the README's table",
+        "(explicit options still win); noisier than the table in docs/benchmarks.md",
     )
     parser.add_argument(
         "--mason",

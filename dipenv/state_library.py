@@ -1,7 +1,8 @@
 """Library of pre-sheared start states, generated on first use and cached on disk.
 
 A start state is a random packing (seed ``s``) sheared without field for ``preshear_strain`` strains
-(the contact network and the fabric reach their steady state after about 2–3 strains: see the README's
+(the contact network and the fabric reach their steady state after about 2–3 strains: see
+docs/environments.md's
 relaxation measurement). The library keeps, per state, the full :class:`sim.SimulationState` (so that a
 run continues it bit for bit) and the per-step ``eta_r``, ``N1``, ``N2`` and step sizes of the last
 ``tail_strain`` strains, from which the first observation's interval averages are taken.

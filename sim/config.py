@@ -22,7 +22,7 @@ from sim.hydrodynamics.resistance_functions import (
 
 DEFAULT_TIME_STEP = 2.0e-3
 """Default (largest) step in time units: particles move about 0.1% of the mean spacing per step at
-phi = 0.45 under pure shear (paper: below 0.4%); the convergence study in the README supports it."""
+phi = 0.45 under pure shear (paper: below 0.4%); the convergence study in docs/validation.md supports it."""
 
 DEFAULT_MAX_DISPLACEMENT = 4.0e-3
 """Default bound on a step's non-affine displacement, as a fraction of the mean spacing ``n^(-1/3)``

@@ -1,6 +1,6 @@
 """The compiled time step: velocity terms, stress, adaptive AB2 move, wrap, overlap removal.
 
-The particle velocity is a sum of terms (paper eq. 2.6, ``physics.md`` §5)::
+The particle velocity is a sum of terms (paper eq. 2.6, ``docs/model.md#time-stepping``)::
 
     U = u_inf + R_FU^-1 . (R_FE : E_inf + F^p) + U^d,        Omega^d = 0,
 
@@ -78,7 +78,8 @@ STATUS_MESSAGES = {
 
 ISOLATED_ICEP_STRESSLET = 9.0 * math.pi
 """``S0 = 9 pi eps a^3 E0^2 (ee - I/3)`` for an ideally polarisable sphere with a fully polarised thin
-double layer (``physics.md`` §4; the B2 squirming mode of the ICEO slip ``(9/4) U0 sin(th) cos(th)``)."""
+double layer (``docs/model.md#dipolophoresis``; the B2 squirming mode of the ICEO slip ``(9/4) U0 sin(th)
+cos(th)``)."""
 
 
 @njit(cache=True)
@@ -149,7 +150,8 @@ def dipolophoresis_term(
     """Dipolophoretic velocity ``U^d`` (mobility approach, paper eq. 2.3) and its stresses.
 
     ``U^d_alpha = U0 sum_beta [M^ICEP + M^DEP](x_alpha - x_beta) : ee`` over all particles and their
-    periodic images (Ewald sums of the far-field kernels, ``physics.md`` §4), with the exact two-sphere
+    periodic images (Ewald sums of the far-field kernels, ``docs/model.md#dipolophoresis``), with the exact
+    two-sphere
     functions blended in for pairs closer than ``field.near_field_cutoff``
     (:mod:`sim.dipolophoresis.near_field_blend`); the isolated-sphere ICEP
     stresslet ``n S0``, the O(r^-3) pair corrections to it and the DEP force virial go to the slots

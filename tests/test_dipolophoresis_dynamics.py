@@ -1,6 +1,6 @@
 """Two spheres in a quiescent fluid under a field (far-field kernels, large periodic box).
 
-Independent expectations (Saintillan 2008; Park & Saintillan 2010; paper §2.1, physics.md §4):
+Independent expectations (Saintillan 2008; Park & Saintillan 2010; paper §2.1, docs/model.md#dipolophoresis):
 under dipolophoresis (ICEP dominant) a pair inclined to the field first approaches, then rotates
 towards the plane normal to the field and separates ("transient pairing"); under DEP alone the pair
 rotates into the field direction and stays in contact (a chain).

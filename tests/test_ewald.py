@@ -1,6 +1,7 @@
 """Periodic far-field DIP sums by Ewald summation (sim/dipolophoresis/ewald.py, periodic.py).
 
-Independent numbers: the reference rows of physics.md §4 (cubic L = 10 and sheared L = 9 boxes),
+Independent numbers: the reference rows of docs/model.md#dipolophoresis (cubic L = 10 and sheared L = 9
+boxes),
 direct lattice sums (the absolutely convergent T sum; the conditionally convergent stress sums over a
 large sphere with the analytic surface term), invariances (splitting parameter, whole-lattice
 translation, Lees–Edwards offset +L/2 == -L/2, zero total velocity), and tight Ewald references for the
@@ -64,12 +65,13 @@ def _rms(v: np.ndarray) -> float:
 
 
 # --------------------------------------------------------------------------------------------------
-# Reference values (physics.md §4)
+# Reference values (docs/model.md#dipolophoresis)
 # --------------------------------------------------------------------------------------------------
 
 
 def test_reference_cubic_box() -> None:
-    """L = 10, e = y, target (1.5, 2.5, -0.7): physics.md values to their 8 decimals (atol 6e-9)."""
+    """L = 10, e = y, target (1.5, 2.5, -0.7): docs/model.md#ewald-reference-values values to their 8
+    decimals (atol 6e-9)."""
     target = (1.5, 2.5, -0.7)
     icep = periodic_pair_velocity(target, 10.0, mechanism="icep")
     dep = periodic_pair_velocity(target, 10.0, mechanism="dep")
@@ -80,7 +82,8 @@ def test_reference_cubic_box() -> None:
 
 @pytest.mark.parametrize("strain", [1.3, 0.3, -0.7])
 def test_reference_sheared_box(strain: float) -> None:
-    """L = 9, e = z, offset 2.7 (strains 1.3, 0.3, -0.7: one lattice): physics.md to 10 decimals (6e-11)."""
+    """L = 9, e = z, offset 2.7 (strains 1.3, 0.3, -0.7: one lattice): docs/model.md#ewald-reference-values
+    to 10 decimals (6e-11)."""
     target = (0.4, -2.6, 1.7)
     icep = periodic_pair_velocity(target, 9.0, (0, 0, 1), "icep", strain)
     dep = periodic_pair_velocity(target, 9.0, (0, 0, 1), "dep", strain)
@@ -215,7 +218,7 @@ def test_stress_sums_direct_spherical_summation() -> None:
 
     The kernels decay as r^-3, so the lattice sums are conditionally convergent; a spherical summation
     equals the k = 0-dropped Ewald sum plus ``(N^2/V) <lim_{k->0} K^(k)>`` averaged over directions.
-    For the ICEP stresslet correction that average vanishes (the free-space formula of physics.md,
+    For the ICEP stresslet correction that average vanishes (the free-space formula of docs/model.md,
     summed spherically, equals the Ewald sum, whose ``tr(H) I`` Lorentz term cancels the average of
     the ``-4 pi I`` contact part); for the DEP virial ``<K^> = (8 pi/5) Q`` gives the surface term
     ``-(4 pi^2 N^2/(5 V^2)) Q`` (here 40% of the stress, so the check is sharp). Spherical truncation

@@ -1,6 +1,7 @@
 """Free-space far-field DIP kernels (sim/dipolophoresis/far_field.py).
 
-Independent numbers: the signs and symmetries of physics.md §4, its free-space reference velocities,
+Independent numbers: the signs and symmetries of docs/model.md#dipolophoresis, its free-space reference
+velocities,
 the isotropic (F_par, F_perp, F_x) form, the isolated-sphere stresslet S0 = 9 pi eps a^3 E0^2 (ee - I/3),
 and, for the O(r^-3) pair correction to the ICEP stresslet, a numerical re-derivation: the exact
 electric problem of an insulating sphere in the applied field plus a distant sphere's dipole field
@@ -48,7 +49,8 @@ def _random_rotation(rng: np.random.Generator) -> np.ndarray:
 @pytest.mark.parametrize("mechanism", ["dip", "icep", "dep"])
 @pytest.mark.parametrize("r", [2.1, 3.0, 6.0, 25.0])
 def test_along_field_attract_perpendicular_repel(mechanism: str, r: float) -> None:
-    """physics.md §4: field along the line of centres -> U.xh < 0; perpendicular -> U.xh > 0 (strict)."""
+    """docs/model.md#dipolophoresis: field along the line of centres -> U.xh < 0; perpendicular -> U.xh > 0
+    (strict)."""
     icep, dep = MECHANISMS[mechanism]
     for _ in range(5):
         xh = _unit(RNG.normal(size=3))
@@ -121,7 +123,8 @@ def test_vector_form_equals_scalar_functions(mechanism: str) -> None:
 
 
 def test_scalar_functions_published_coefficients() -> None:
-    """physics.md §4 far-field coefficients at r = 3 (exact rational arithmetic, 1e-15), DIP = ICEP + DEP."""
+    """docs/model.md#dipolophoresis far-field coefficients at r = 3 (exact rational arithmetic, 1e-15), DIP =
+    ICEP + DEP."""
     r = 3.0
     icep = far_field_functions(r, MECHANISM_ICEP)
     dep = far_field_functions(r, MECHANISM_DEP)
@@ -138,7 +141,8 @@ def test_scalar_functions_published_coefficients() -> None:
 
 
 def test_free_space_reference_values() -> None:
-    """physics.md §4 free-space pair values at x = (1.5, 2.5, -0.7), e = y (8 decimals given: atol 6e-9)."""
+    """docs/model.md#dipolophoresis free-space pair values at x = (1.5, 2.5, -0.7), e = y (8 decimals given:
+    atol 6e-9)."""
     x = np.array([1.5, 2.5, -0.7])
     e = np.array([0.0, 1.0, 0.0])
     np.testing.assert_allclose(
@@ -168,7 +172,7 @@ def test_dep_force_and_virial() -> None:
         np.testing.assert_allclose(dep_pair_force(-x, e), -f, rtol=1e-15)
         vir = dep_pair_virial(x, e)
         np.testing.assert_allclose(vir, -0.5 * (np.outer(x, f) + np.outer(f, x)), rtol=1e-15)
-        # +3 pi r^-3 sym(xh W) (physics.md §4)
+        # +3 pi r^-3 sym(xh W) (docs/model.md#dipolophoresis)
         r = np.linalg.norm(x)
         xh = x / r
         c = e @ xh
@@ -268,7 +272,8 @@ def _faxen_stresslet_numerical(x: np.ndarray, e: np.ndarray) -> np.ndarray:
 
 
 def test_isolated_stresslet_numerical() -> None:
-    """The numerical slip stresslet of an isolated sphere is S0 = 9 pi (ee - I/3) (physics.md §4), 1e-9."""
+    """The numerical slip stresslet of an isolated sphere is S0 = 9 pi (ee - I/3)
+    (docs/model.md#dipolophoresis), 1e-9."""
     e = _unit(np.array([0.2, 0.9, -0.3]))
     far = 1e7 * _unit(np.array([1.0, 0.3, 0.2]))  # beta's dipole field negligible (1e-21)
     np.testing.assert_allclose(
@@ -277,7 +282,8 @@ def test_isolated_stresslet_numerical() -> None:
 
 
 def test_stresslet_correction_matches_derivation() -> None:
-    """physics.md's O(r^-3) dS equals the numerical electric change plus the Faxén stresslet.
+    """docs/model.md#icep-pair-stresslet's O(r^-3) dS equals the numerical electric change plus the Faxén
+    stresslet.
 
     The neglected terms are O(r^-5) (no O(r^-4): a dipole-quadrupole product has no l = 2 part, and the
     Faxén correction is O(r^-5)), so the relative residual must fall like r^-2: measured 7.8e-4 at

@@ -52,7 +52,7 @@ def test_sheared_suspension_repulsion_cancels_in_the_shear_stress() -> None:
     3.0-4.5% of the virial's (measured at the default regularisation delta = 1e-3; 0.5-0.8% at 1e-4,
     the softer pairs cancel less, as for the isolated pair above); bound 8%, while no cancellation
     would give ~100%. This is why the paper can call the interparticle stress negligible while the
-    virial alone is a quarter of eta_r at this phi (README)."""
+    virial alone is a quarter of eta_r at this phi (docs/validation.md)."""
     for seed in (1, 2, 3):
         config = SimulationConfig(n_particles=60, volume_fraction=0.4, strain=1.0, seed=seed)
         sim = Simulation(config)

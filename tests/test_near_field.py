@@ -1,7 +1,7 @@
 """The near-field table, its loader and the ``pair_functions`` contract (sim/dipolophoresis/near_field.py).
 
 Independent numbers: the generator itself (``solve_pair_functions``, recomputed here at table nodes and
-between them), the far-field forms of physics.md section 4 beyond the table, and interpolation-error
+between them), the far-field forms of docs/model.md#dipolophoresis beyond the table, and interpolation-error
 estimates from re-splining every second node.
 """
 
@@ -32,7 +32,7 @@ from sim.dipolophoresis.two_sphere.tabulation import near_contact_value
 
 
 def far_field(r: float) -> np.ndarray:
-    """physics.md section 4: ICEP (F_par, F_perp, F_x), then DEP."""
+    """docs/model.md#dipolophoresis: ICEP (F_par, F_perp, F_x), then DEP."""
     return np.array(
         [
             -9 / (4 * r**2) + 11 / (2 * r**4),
@@ -151,7 +151,7 @@ def test_near_contact_forms_against_exact_solutions() -> None:
 
 
 def test_far_field_beyond_table() -> None:
-    """r > r_end: exactly the physics.md far-field forms; the jump at r_end is < 1e-4 U0."""
+    """r > r_end: exactly the docs/model.md#dip-far-field far-field forms; the jump at r_end is < 1e-4 U0."""
     for r in (R_TABLE_MAX * (1 + 1e-9), 12.0, 100.0):
         np.testing.assert_allclose(all_six(r), far_field(r), rtol=1e-14, atol=0)
     jump = np.abs(all_six(R_TABLE_MAX) - far_field(R_TABLE_MAX))
@@ -198,7 +198,7 @@ def test_numba_kernel_matches_numpy_evaluator() -> None:
 
 def test_physics_sanity_of_tabulated_functions() -> None:
     """Signs and limits: ICEP attracts along the field and repels across it far away; at r = 4 the
-    truncated DEP far field overestimates the exact F_par by > 50 % (physics.md says ~65 %)."""
+    truncated DEP far field overestimates the exact F_par by > 50 % (docs/model.md says ~65 %)."""
     f_par, f_perp, _ = pair_functions(5.0)
     assert f_par < 0 < f_perp
     dep_exact = pair_functions(4.0, "dep")[0]

@@ -95,7 +95,7 @@ def _basis(f: tuple[float, float, float, float], e: np.ndarray, xh: np.ndarray) 
 @pytest.mark.parametrize("r,angle", [(2.02, 25.0), (2.7, 70.0)])
 def test_stress_correction_equals_exact_minus_far_field(r: float, angle: float) -> None:
     """Isolated pair, field on (Mn = 1, quiescent units eps E0^2): the exact-minus-none difference of each
-    DIP stress slot equals, from the public table functions and physics.md's far-field forms,
+    DIP stress slot equals, from the public table functions and docs/model.md#dip-far-field's far-field forms,
     icep_pair: 2 pi (dS^exact - dS^far) / V; dep_virial: -pi sym(x (F^exact - F^far)) / V;
     dep_stresslet: 2 pi S^DEP / V (1e-10 relative: rounding)."""
     from sim.dipolophoresis.near_field_stress import dep_force_functions, pair_stress_functions

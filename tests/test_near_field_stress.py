@@ -1,7 +1,8 @@
 """Near-field stress table, loader and compiled tensor helpers (sim/dipolophoresis/near_field_stress.py).
 
 Independent numbers: the generator's solver (``solve_pair_stresslets``, recomputed at and between nodes), the
-far-field forms of physics.md section 4 (ICEP dS, DEP force ``-3 W/r^4``) beyond the table and at the cut-off,
+far-field forms of docs/model.md#dipolophoresis (ICEP dS, DEP force ``-3 W/r^4``) beyond the table and at the
+cut-off,
 scipy's not-a-knot ``CubicSpline`` on the same nodes, interpolation-error estimates from re-splining every
 second node, and the isotropic tensor forms written out independently of the kernels.
 """
@@ -47,7 +48,7 @@ def all_ten(r: float) -> np.ndarray:
 
 
 def far_field(r: float) -> np.ndarray:
-    """physics.md section 4 (ICEP dS; DEP force -3W/r^4) and the DEP stresslet's leading terms."""
+    """docs/model.md#dipolophoresis (ICEP dS; DEP force -3W/r^4) and the DEP stresslet's leading terms."""
     return np.concatenate(
         [
             np.array([9.0, -36.0, -22.5, 112.5]) / r**3,
@@ -235,9 +236,10 @@ def test_pair_stress_tensors_match_isotropic_forms() -> None:
 
 
 def test_corrections_vanish_beyond_table_and_match_far_field_kernels() -> None:
-    """pair_stress_corrections: exact minus physics.md far field (written out here: ICEP dS of physics.md and
+    """pair_stress_corrections: exact minus docs/model.md#dip-far-field far field (written out here: ICEP dS
+    of docs/model.md and
     F = -3 W/r^4), zero beyond the table (r = 12) except the whole DEP stresslet; at r = 4 the ICEP correction
-    is ~20 % of the far-field term (physics.md's form is an O(r^-3) truncation)."""
+    is ~20 % of the far-field term (docs/model.md's form is an O(r^-3) truncation)."""
     rng = np.random.default_rng(23)
     xh, e = rng.normal(size=3), rng.normal(size=3)
     xh, e = xh / np.linalg.norm(xh), e / np.linalg.norm(e)

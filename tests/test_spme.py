@@ -3,7 +3,7 @@ sim/dipolophoresis/ewald.py).
 
 Independent numbers: B-spline identities (partition of unity, symmetry), charge conservation, a
 brute-force Fourier sum over the sheared reciprocal lattice written here in numpy, and the plain Ewald
-sums (tests/test_ewald.py checks those against physics.md and direct lattice sums).
+sums (tests/test_ewald.py checks those against docs/model.md and direct lattice sums).
 """
 
 from __future__ import annotations

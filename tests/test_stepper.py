@@ -106,7 +106,8 @@ def test_time_step_control() -> None:
 
 def test_pure_shear_keeps_the_validated_fixed_step() -> None:
     """phi = 0.45 pure shear: the displacement bound (0.4% of the spacing) never binds, so every step is
-    the fixed dt = 0.002 of the validated runs (README), and the rheology is that of the fixed-step code."""
+    the fixed dt = 0.002 of the validated runs (docs/validation.md), and the rheology is that of the
+    fixed-step code."""
     sim = Simulation(SimulationConfig(n_particles=64, volume_fraction=0.45, seed=2))
     records = sim.advance_to(1.0)
     assert np.all(records.time_step == 0.002)
@@ -149,7 +150,8 @@ def test_field_off_gives_no_dipolophoresis() -> None:
 
 
 def test_isolated_icep_stresslet() -> None:
-    """n S0 with S0 = 9 pi eps a^3 E0^2 (ee - I/3) (physics.md §4): (27/4) phi (ee - I/3) / Mn, exact."""
+    """n S0 with S0 = 9 pi eps a^3 E0^2 (ee - I/3) (docs/model.md#dipolophoresis): (27/4) phi (ee - I/3) /
+    Mn, exact."""
     config = SimulationConfig(
         n_particles=64, volume_fraction=0.3, mason_number=0.5, field_direction=(1, 1, 0)
     )

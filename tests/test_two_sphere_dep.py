@@ -7,7 +7,7 @@ Independent numbers:
 * isolated sphere: Stokes drag 6 pi eta a U and torque 8 pi eta a^3 Omega;
 * point-dipole force between insulating spheres (dipole ``-2 pi eps a^3 E0``): ``F = -6 pi eps a^2 E0^2/r^4``
   along the field, and the far-field DEP velocities ``F_par = -1/r^4``, ``F_perp = F_x = 1/(2r^4)``
-  (physics.md section 4) with the O(r^-5) corrections of the Oseen relative mobilities
+  (docs/model.md#dipolophoresis) with the O(r^-5) corrections of the Oseen relative mobilities
   ``G = 1 - 3/(2r)``, ``H = 1 - 3/(4r)`` (Batchelor 1976).
 """
 

@@ -3,8 +3,8 @@
 Independent numbers:
 * isolated sphere: zero velocity (symmetric quadrupolar slip; Squires & Bazant 2006);
 * Reed & Morrison (1976) / Morrison (1970): spheres with a uniform zeta translate at exactly the
-  Smoluchowski velocity ``eps zeta E0/eta`` at every separation (tolerance 1e-6, physics.md);
-* far field (Saintillan 2008; paper eq. 2.4; physics.md section 4):
+  Smoluchowski velocity ``eps zeta E0/eta`` at every separation (tolerance 1e-6, docs/model.md);
+* far field (Saintillan 2008; paper eq. 2.4; docs/model.md#dipolophoresis):
   ``F_par = -9/(4r^2) + 11/(2r^4)``, ``F_perp = 9/(8r^2) - 11/(4r^4)``, ``F_x = -11/(4r^4)``, with a
   residual ``O(r^-5)`` -- the slope of the residual on log-log axes is fitted;
 * symmetry ``U_1 = -U_2`` and zero radial relative velocity at contact (lubrication).

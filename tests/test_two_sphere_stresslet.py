@@ -1,7 +1,8 @@
 """Exact two-sphere stresslets (sim/dipolophoresis/two_sphere/stresslet.py).
 
 Independent numbers and checks:
-* isolated ICEP sphere ``S0 = 9 (ee - I/3)`` (physics.md section 4; squirmer ``4 pi B2 (ee - I/3)`` with
+* isolated ICEP sphere ``S0 = 9 (ee - I/3)`` (docs/model.md#dipolophoresis; squirmer ``4 pi B2 (ee - I/3)``
+with
   ``B2 = 9/4``), here also from the independent surface formula ``S = -5 ST[int u_s n dS]`` of a force- and
   torque-free sphere, at oblique fields (so m = 0, 1, 2 and their superposition are all tested);
 * rigid sphere in a straining flow: ``S = (20/3) pi E`` (Batchelor 1970) for the m = 0, 1, 2 strains;
@@ -11,7 +12,8 @@ Independent numbers and checks:
 * uniform zeta (Reed & Morrison 1976, Morrison 1970): the flow is irrotational and pressure-free, so both
   stresslets vanish at every separation;
 * symmetry of equal spheres: ``S_alpha = S_beta``;
-* far field: physics.md's O(r^-3) ICEP pair correction with a fitted residual slope of -5; DEP force
+* far field: docs/model.md#icep-pair-stresslet's O(r^-3) ICEP pair correction with a fitted residual slope of
+-5; DEP force
   ``-3 W/r^4``, force-to-stresslet mobility ``5/(2 r^2)`` (Faxen stresslet of the partner's Stokeslet);
 * convergence in the truncation order; the ICEP velocities from the same solves match near_field.txt.
 """
@@ -55,7 +57,7 @@ def systems(r: float | None, order: int) -> tuple:
 
 
 def physics_md_far_field(e: np.ndarray, xh: np.ndarray, r: float) -> np.ndarray:
-    """physics.md section 4, written out independently of the module: units pi eps a^3 E0^2."""
+    """docs/model.md#dipolophoresis, written out independently of the module: units pi eps a^3 E0^2."""
     c = float(e @ xh)
     return (
         9 * np.outer(e, e)
@@ -330,7 +332,8 @@ def test_decomposition_round_trip_at_oblique_fields() -> None:
 
 
 def test_far_field_physics_md_formula_and_residual_order() -> None:
-    """Exact ICEP dS vs physics.md: r^3 dS -> (9, -36, -45/2, 225/2); the residual's fitted log-log slope over
+    """Exact ICEP dS vs docs/model.md: r^3 dS -> (9, -36, -45/2, 225/2); the residual's fitted log-log slope
+    over
     r = 16..32 is -5 +/- 0.15 for every function (no r^-4 term); full tensors at r = 40 for oblique fields
     agree to 2e-2 relative to the r^-3 term (residual r^-5 ~ 30/r^2 = 2 %)."""
     radii = np.array([16.0, 22.627, 32.0])

@@ -9,7 +9,7 @@ field) is validated by ``tests/test_validation_paper_grid_slow.py``.
 
 What is asserted: ``U_rms^DIP / U_rms^shear`` falls monotonically with Mn (the DIP velocity scales as
 1/Mn). The far-field model's viscosities are reported, not asserted: without the near field the
-truncated ICEP kernel still attracts at contact and the field raises eta_r at every Mn (README).
+truncated ICEP kernel still attracts at contact and the field raises eta_r at every Mn (docs/validation.md).
 """
 
 from __future__ import annotations

@@ -4,7 +4,8 @@ Runs exactly the documented command ``python -m sim sweep --spec results/paper_g
 runs/paper_grid`` (4 volume fractions x 6 Mason numbers x 2 seeds, N = 100, strain 30 averaged over
 10-30, exact near field, delta = 1e-3; about 2 hours on 2 cores, resumable: a rerun reuses finished
 points made by the same sim sources), then ``results/paper_grid/compare.py`` (values and the
-"paper says / we get" table, reproduced in the README), and asserts the trends of physics.md §8 that
+"paper says / we get" table, reproduced in docs/validation.md), and asserts the trends of
+docs/validation.md#published-results that
 this model reproduces, on the seed means:
 
 * phi = 0.15 nearly Newtonian: every Mn within 10% of pure shear (measured 4%);
@@ -13,7 +14,7 @@ this model reproduces, on the seed means:
 * shear thickening at phi >= 0.3: eta_r(Mn = 10) above both low-Mn values;
 * ``U_rms^DIP / U_rms^shear`` falls monotonically with Mn at every phi (the DIP velocity ~ 1/Mn).
 
-The statements it does not reproduce are in the comparison table with the evidence in the README, not
+The statements it does not reproduce are in the comparison table with the evidence in docs/validation.md, not
 asserted (a test that fails for a documented modelling reason would only be skipped).
 """
 

@@ -3,7 +3,7 @@
 Run with ``python -m pytest -m slow`` (about 3 minutes on 2 cores). Settings: N = 200, strain 30,
 dt = 2e-3, averages over strain 10-30 with 10 blocks, seed 1, default lubrication (cut-off 0.5 a,
 regularisation 1e-3 a). The table is written to ``runs/validation/table.md`` (reproduced in the
-README) and plotted in ``runs/validation/viscosity.png``.
+docs/validation.md) and plotted in ``runs/validation/viscosity.png``.
 
 Independent numbers: Maron–Pierce ``eta_r = (1 - phi/0.63)^-2`` (the correlation the paper validates
 against, its Fig. 2a); within 20% for phi <= 0.45 (phi = 0.50 is reported, not asserted). The band
@@ -11,7 +11,7 @@ covers what separates this model from the experiments behind the correlation: no
 hydrodynamics (which raises eta_r at moderate phi), frictionless spheres whose viscosity diverges at
 frictionless random close packing rather than 0.63, finite N, and the lubrication regularisation
 (delta = 1e-3 a, as in Mari et al. 2014, gives 10.26 at phi = 0.45, -16%; delta = 1e-4 gave 11.11, -9%;
-README). A sign error or a missing contribution moves eta_r(0.45) by far more than 20%.
+docs/validation.md). A sign error or a missing contribution moves eta_r(0.45) by far more than 20%.
 N1 < 0 and N2 < 0 (Sierou & Brady 2002; paper Fig. 4 insets) at phi >= 0.30 where they exceed their
 standard errors.
 """

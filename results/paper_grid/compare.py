@@ -4,7 +4,8 @@
 
 Reads every finished point (``sim.sweep_figures.load_sweep``: means and standard errors over seeds),
 writes ``values.md`` (eta_r, N1, N2, particle pressure, ``U_rms^DIP / U_rms^shear``, D_yy per phi and Mn)
-and ``comparison.md`` (each statement of physics.md section 8 about sheared dipolophoresis, the numbers
+and ``comparison.md`` (each statement of docs/validation.md#published-results about sheared dipolophoresis,
+the numbers
 that test it and whether they agree), and prints both. Points not run yet show as "–"; a statement
 whose points are missing reads "not run".
 """

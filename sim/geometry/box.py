@@ -1,6 +1,7 @@
 """Cubic Lees–Edwards box: offset, minimum image and wrapping.
 
-Conventions (``physics.md`` §1–2): sphere radius ``a = 1``; axes ``x`` flow, ``y`` velocity
+Conventions (docs/units.md, docs/model.md#lees-edwards-box): sphere radius ``a = 1``; axes ``x`` flow, ``y``
+velocity
 gradient, ``z`` vorticity; shear rate ``gammadot``. The periodic images at ``y +/- L`` are shifted by
 ``+/- delta`` in ``x`` and move with ``+/- gammadot*L`` in ``x``, where the offset
 ``delta = strain*L mod L`` is kept in ``[-L/2, L/2)``. The equivalent sheared lattice has basis
@@ -47,7 +48,7 @@ def lees_edwards_offset(strain: float, box_length: float) -> float:
         the same offset (up to rounding), so the lattice is periodic in strain with period 1.
 
     References:
-        Lees & Edwards (1972), J. Phys. C 5, 1921; ``physics.md`` §2.
+        Lees & Edwards (1972), J. Phys. C 5, 1921; ``docs/model.md#lees-edwards-box``.
     """
     shift = strain * box_length
     delta = shift - box_length * math.floor(shift / box_length + 0.5)
@@ -88,7 +89,7 @@ def minimum_image(
         ``(dx, dy, dz)`` of the minimum image (units of ``a``).
 
     References:
-        Allen & Tildesley (2017), Computer Simulation of Liquids, §11.3; ``physics.md`` §2.
+        Allen & Tildesley (2017), Computer Simulation of Liquids, §11.3; ``docs/model.md#lees-edwards-box``.
     """
     ny = np.round(dy / box_length)
     dy = dy - ny * box_length
@@ -183,7 +184,7 @@ def wrap_positions(positions: np.ndarray, box_length: float, offset: float) -> n
         when the particle had gone above ``y = L``).
 
     References:
-        Lees & Edwards (1972), J. Phys. C 5, 1921; ``physics.md`` §2.
+        Lees & Edwards (1972), J. Phys. C 5, 1921; ``docs/model.md#lees-edwards-box``.
     """
     n_particles = positions.shape[0]
     crossings = np.zeros(n_particles, dtype=np.int64)
@@ -210,7 +211,7 @@ class LeesEdwardsBox:
         strain: Accumulated shear strain (dimensionless, finite; any sign or magnitude).
 
     References:
-        Lees & Edwards (1972), J. Phys. C 5, 1921; ``physics.md`` §2.
+        Lees & Edwards (1972), J. Phys. C 5, 1921; ``docs/model.md#lees-edwards-box``.
     """
 
     length: float

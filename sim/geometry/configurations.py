@@ -20,7 +20,7 @@ References:
     Liu, A. J. & Nagel, S. R. (2003) "Jamming at zero temperature and zero applied stress: the
     epitome of disorder", Phys. Rev. E 68, 011306. Bitzek, E., Koskinen, P., Gähler, F., Moseler, M.
     & Gumbsch, P. (2006) "Structural relaxation made simple", Phys. Rev. Lett. 97, 170201.
-    Mirfendereski, S. & Park, J. S. (2024), J. Fluid Mech., §2.3; ``physics.md`` §5.
+    Mirfendereski, S. & Park, J. S. (2024), J. Fluid Mech., §2.3; ``docs/model.md#time-stepping``.
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ def box_length_for(n_particles: int, volume_fraction: float) -> float:
         ValueError: If an argument is out of range (the message names it).
 
     References:
-        ``physics.md`` §1.
+        ``docs/units.md``.
     """
     if isinstance(n_particles, bool) or int(n_particles) != n_particles or n_particles < 1:
         raise ValueError(f"n_particles must be an integer >= 1, got {n_particles!r}")

@@ -21,7 +21,7 @@ References:
     "The pathological behaviour of sheared hard spheres with hydrodynamic interactions",
     Europhys. Lett. 32, 535; Ball, R. C. & Melrose, J. R. (1997) "A simulation technique for many
     spheres in quasi-static motion under frame-invariant pair drag and Brownian forces",
-    Physica A 247, 444. ``physics.md`` §5.
+    Physica A 247, 444. ``docs/model.md#time-stepping``.
     Verlet, L. (1967) Phys. Rev. 159, 98-103 (neighbour list with a skin).
 """
 
@@ -86,7 +86,7 @@ def remove_overlaps(
 
     References:
         Melrose & Ball (1993), as used by Mirfendereski & Park (2024), J. Fluid Mech., §2.3;
-        ``physics.md`` §5.
+        ``docs/model.md#time-stepping``.
     """
     n = positions.shape[0]
     crossings = np.zeros(n, dtype=np.int64)

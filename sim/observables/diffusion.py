@@ -1,6 +1,6 @@
 """Self-diffusion under shear: non-affine displacements, mean-square displacement, diffusivities.
 
-Three pieces (paper §3.4, Fig. 6; ``physics.md`` §7):
+Three pieces (paper §3.4, Fig. 6; ``docs/model.md#observables``):
 
 * :func:`accumulate_displacement` — called by the compiled step loop (:func:`sim.stepper.advance`) after
   every step: adds the step's non-affine displacement of each sphere, in the unwrapped frame, to the

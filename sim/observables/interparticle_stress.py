@@ -3,7 +3,8 @@
 The ``repulsion`` contribution of :mod:`sim.observables.stress` is the direct virial ``-n <x F^p>``
 alone; the hydrodynamic stresslet of the motion the repulsive forces drive,
 ``-n <R_SU . R_FU^-1 . F^p>``, sits inside ``lubrication`` because the step solves for the shear- and
-repulsion-driven velocity together (paper eq. 2.9, ``physics.md`` §6). Sierou & Brady (2002) report
+repulsion-driven velocity together (paper eq. 2.9, ``docs/model.md#bulk-stress``). Sierou & Brady (2002)
+report
 the sum of the two as the interparticle-force stress, ``-n <(x I + R_SU . R_FU^-1) . F^p>``. By
 linearity of Stokes flow the split needs one extra solve, ``R_FU . V^p = F^p``; this module does that
 at a given configuration (a diagnostic, outside the time step).

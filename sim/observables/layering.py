@@ -1,6 +1,7 @@
 """Layer order along the field: the density structure factor at the wavevectors of layers normal to it.
 
-Under a field the spheres form sheets normal to the field, about ``2.45 a`` apart (``physics.md`` §8:
+Under a field the spheres form sheets normal to the field, about ``2.45 a`` apart
+(``docs/validation.md#published-results``:
 layers normal to ``y`` at ``phi = 0.3, Mn = 1`` and ``phi = 0.45, Mn = 0.1``). Their order is measured by
 the density structure factor (Hansen & McDonald, Theory of Simple Liquids, 4th ed. 2013, eq. 4.1.3 and
 §4.1)::

@@ -1,4 +1,5 @@
-"""Microstructure statistics of one configuration in the Lees–Edwards box (paper §3.3; physics.md §7).
+"""Microstructure statistics of one configuration in the Lees–Edwards box (paper §3.3;
+docs/model.md#observables).
 
 Three compiled statistics of the pair geometry, each built on the Lees–Edwards cell list
 (:func:`sim.geometry.neighbors.build_pair_list`, minimum image with the offset
