@@ -14,17 +14,18 @@ Joining adjacent front points linearly is what switching between the two constan
 the time would give if the suspension followed each field at once (it does not: the relaxation strains are
 0.5-2), so the straight segments are a demanding baseline between the measured points, not a measurement.
 
-The verdict uses the policy's 95% interval over training seeds: "below the front" if its upper end is
-below ``front_eta``, "above" if its lower end is above, otherwise "on the front". The action variation
+The verdict uses the policy's 95% bootstrap interval over training seeds (:mod:`agents.statistics`):
+"below the front" if its upper end is below ``front_eta``, "above" if its lower end is above, otherwise
+"on the front". The action variation
 (second half of each episode) tells whether a policy is more than a constant: the standard deviation of its
 action (in the action box, [-1, 1]), the share of intervals with the field off, and the 10th-90th
 percentile range of the Mason numbers it used.
 
 The return (the reward the policy was trained for) is compared with the best constant field's on the
 same start states: per training seed, the policy's mean return minus the constant's mean return over
-those states (a paired comparison: the states' spread, common to both, drops out), then the mean and
-95% interval over seeds. "higher return" if the interval's lower end is above 0, "lower" if its upper
-end is below, otherwise "same return within the 95% interval".
+those states (a paired comparison: the states' spread, common to both, drops out), then the mean and its
+95% bootstrap interval over seeds (:mod:`agents.statistics`, rliable). "higher return" if the interval's
+lower end is above 0, "lower" if its upper end is below, otherwise "same return within the 95% interval".
 """
 
 from __future__ import annotations
@@ -35,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.rollout import confidence_interval
+from agents.statistics import interval_estimates
 
 
 def front_points(rows: Sequence[dict[str, Any]]) -> list[tuple[float, float]]:
@@ -125,7 +126,8 @@ def return_gap(per_seed_returns: Sequence[float], reference: float) -> dict[str,
     if not math.isfinite(reference):
         raise ValueError(f"reference must be a finite return, got {reference}")
     gaps = [r - reference for r in per_seed_returns if math.isfinite(r)]
-    mean, low, high = confidence_interval(gaps)
+    stats = interval_estimates(gaps)
+    mean, low, high = stats["mean"], stats["ci_low"], stats["ci_high"]
     if not gaps:
         verdict = "no finite return"
     else:

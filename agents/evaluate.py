@@ -22,14 +22,16 @@ the policy's actions (torch seeded with the start state's index) instead of play
 each as its own row): a PPO policy early in training is a wide Gaussian whose mean alone can do much
 worse than the policy it was trained as.
 
-Writes ``table.md`` / ``results.json``: per policy, over training seeds, the mean and 95% Student-t
-interval (and the IQM where there are >= 5 seeds) of the per-seed averages of the time-averaged ``eta_r``
-over the second half of each episode, the field energy ``<1/Mn>`` over that half and the return; for
-the baselines (no field and the best constant field for the reward) the same over start states. Plots:
+Writes ``table.md`` / ``results.json``: per policy, the mean and the interquartile mean (IQM) over its
+training seeds and the start states, each with its 95% stratified-bootstrap interval (rliable, Agarwal
+et al. 2021; :mod:`agents.statistics`), of the time-averaged ``eta_r`` over the second half of each
+episode, the field energy ``<1/Mn>`` over that half and the return; for the baselines (no field, the best
+constant field for the reward, and any ``--controllers``) the same over start states. Plots:
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
 fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
-constant-field front, its return against the best constant field's (paired per seed) and its action
-variation (:mod:`agents.comparison`). ``learning.png``: each run's
+constant-field front, its return against the best constant field's (paired per seed, and rliable's
+probability of improvement over the states) and its action variation (:mod:`agents.comparison`).
+``learning.png``: each run's
 return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
 and in its training episodes with sampled actions (TensorBoard), with the constant fields' returns.
 """
@@ -48,7 +50,8 @@ import yaml
 
 from agents.comparison import action_variation, front_eta, front_points, position, return_gap
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
-from agents.rollout import confidence_interval, interquartile_mean, make_env, run_episode
+from agents.rollout import make_env, run_episode
+from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
 from agents.usage import directory, usage_error
 
@@ -204,14 +207,13 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
-def _stats(values: list[float], iqm: bool) -> dict[str, float]:
-    mean, low, high = confidence_interval(values)
-    return {
-        "mean": mean,
-        "ci_low": low,
-        "ci_high": high,
-        "iqm": interquartile_mean(values) if iqm else math.nan,
-    }
+def _scores(records: list[dict[str, Any]], key: str) -> np.ndarray:
+    """The ``(training seeds, start states)`` matrix of an episode metric; where an episode failed (NaN),
+    the per-seed averages over the finite episodes instead (a vector: seeds as runs of one task)."""
+    matrix = np.array([[e[key] for e in sorted(r["episodes"], key=lambda e: e["index"])] for r in records])
+    if matrix.size and np.all(np.isfinite(matrix)):
+        return matrix
+    return np.array([np.nanmean(row) if np.isfinite(row).any() else np.nan for row in matrix])
 
 
 THICKENING_METRICS = (
@@ -231,29 +233,33 @@ def _metrics(episodes: list[dict[str, Any]]) -> tuple[tuple[str, str], ...]:
 
 
 def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Per-seed averages over episodes, then mean / 95% CI / IQM (>= 5 seeds) over seeds."""
+    """Mean and IQM with 95% stratified-bootstrap intervals over training seeds (runs) and start states
+    (tasks) (:mod:`agents.statistics`); ``per_seed`` holds each seed's average over the states."""
+    metrics = _metrics([e for r in records for e in r["episodes"]])
     per_seed = {
         metric: [float(np.nanmean([e[key] for e in r["episodes"]])) for r in records]
-        for metric, key in _metrics([e for r in records for e in r["episodes"]])
+        for metric, key in metrics
     }
-    iqm = len(records) >= 5
     return {
         "name": name,
         "samples": f"{len(records)} training seeds",
         "failures": sum(bool(e["failed"]) for r in records for e in r["episodes"]),
-        **{metric: _stats(values, iqm) for metric, values in per_seed.items()},
+        **{metric: interval_estimates(_scores(records, key)) for metric, key in metrics},
         "per_seed": per_seed,
+        "returns": _scores(records, "return").tolist(),
     }
 
 
 def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) -> dict[str, Any]:
-    """A constant field: mean and 95% CI over the start states."""
-    episodes = [e for e in record["episodes"] if e["index"] in indices]
+    """A constant field or a controller (deterministic given the state): mean and IQM with their 95%
+    bootstrap intervals over the start states."""
+    episodes = sorted((e for e in record["episodes"] if e["index"] in indices), key=lambda e: e["index"])
     return {
         "name": name,
         "samples": f"{len(episodes)} start states",
         "failures": sum(bool(e["failed"]) for e in episodes),
-        **{metric: _stats([e[key] for e in episodes], False) for metric, key in _metrics(episodes)},
+        **{metric: interval_estimates([e[key] for e in episodes]) for metric, key in _metrics(episodes)},
+        "returns": [[e["return"] for e in episodes]],
     }
 
 
@@ -272,14 +278,17 @@ def format_table(rows: list[dict[str, Any]]) -> str:
     extra_head = (
         " time above cap | excess eta_r over cap | field energy, whole episode |" if thickening else ""
     )
+
+    def iqm(s: dict[str, float], digits: int = 3) -> str:
+        return format_interval(s["iqm"], s["iqm_ci_low"], s["iqm_ci_high"], f".{digits}f")
+
     lines = [
-        "| policy | samples | eta_r, 2nd half: mean [95% CI] | IQM | field energy <1/Mn> | return "
-        "| IQM return | failures |" + extra_head,
+        "| policy | samples | eta_r, 2nd half: mean [95% CI] | IQM [95% CI] | field energy <1/Mn> | return "
+        "| IQM return [95% CI] | failures |" + extra_head,
         "|---|---|---|---|---|---|---|---|" + ("---|---|---|" if thickening else ""),
     ]
     for r in rows:
-        iqm_eta = "" if math.isnan(r["eta"]["iqm"]) else f"{r['eta']['iqm']:.3f}"
-        iqm_ret = "" if math.isnan(r["return"]["iqm"]) else f"{r['return']['iqm']:.2f}"
+        iqm_eta, iqm_ret = iqm(r["eta"]), iqm(r["return"], 2)
         extra = ""
         if thickening:
             above, excess = cell(r["time_above_cap"], 2), cell(r["excess_viscosity"])
@@ -295,10 +304,11 @@ def verdicts(
     rows: list[dict[str, Any]],
     front: list[tuple[float, float]],
     records: list[list[dict[str, Any]]],
-    best_return: float,
+    best: dict[str, Any],
 ) -> list[dict[str, Any]]:
     """Per policy row (with its runs' records): position against the front, per-seed gaps, return
-    against the best constant field's ``best_return`` on the same states, variation."""
+    against the best constant field's row ``best`` on the same states (the per-seed gap, and rliable's
+    probability of improvement over the states), variation."""
     out = []
     for row, runs in zip(rows, records, strict=True):
         eta, energy = row["eta"], row["energy"]
@@ -316,28 +326,41 @@ def verdicts(
                 **where,
                 "seeds_below_front": sum(g < 0 for g in gaps),
                 "seeds": len(gaps),
-                **return_gap(row["per_seed"]["return"], best_return),
+                **return_gap(row["per_seed"]["return"], best["return"]["mean"]),
+                **_improvement(row, best),
                 **action_variation([e for r in runs for e in r["episodes"]]),
             }
         )
     return out
 
 
+def _improvement(row: dict[str, Any], best: dict[str, Any]) -> dict[str, float]:
+    """rliable's ``P(policy return > best constant's)`` with its bootstrap interval, state by state (the
+    policy's seeds against the constant's one run per state); NaN when the episodes failed."""
+    x, y = np.asarray(row["returns"], dtype=float), np.asarray(best["returns"], dtype=float)
+    if x.ndim != 2 or x.shape[1] != y.shape[1] or not (np.isfinite(x).all() and np.isfinite(y).all()):
+        return {"improvement": math.nan, "improvement_low": math.nan, "improvement_high": math.nan}
+    p = probability_of_improvement(x, y)
+    return {"improvement": p["probability"], "improvement_low": p["ci_low"], "improvement_high": p["ci_high"]}
+
+
 def format_verdicts(items: list[dict[str, Any]]) -> str:
     lines = [
         "| policy | field energy | eta_r | front eta_r at that energy | eta_r - front "
         "| front energy for that eta_r | seeds below the front | action std (2nd half) | field off "
-        "| Mn used (10-90%) | verdict | return - best constant [95% CI] | seeds above it | return verdict |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Mn used (10-90%) | verdict | return - best constant [95% CI] | seeds above it | return verdict "
+        "| P(return > best constant) [95% CI] |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for v in items:
         gap = format_interval(v["return_gap"], v["return_gap_low"], v["return_gap_high"], "+.2f")
+        improvement = format_interval(v["improvement"], v["improvement_low"], v["improvement_high"], ".2f")
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
             f"{v['seeds_below_front']}/{v['seeds']} | {v['action_std']:.3f} | {100 * v['off_share']:.0f}% | "
             f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} | {gap} | "
-            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} |"
+            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {improvement} |"
         )
     return "\n".join(lines)
 
@@ -554,13 +577,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     header = (
         f"Environment {pareto['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
         "averages over the second half of each episode (energy in eta gammadot per unit strain); intervals "
-        "are 95% Student-t over training seeds (policies) or start states (constant fields). Returns for "
+        "are 95% stratified-bootstrap intervals (rliable) over training seeds and states (policies) or over "
+        "start states (constant fields, controllers). Returns for "
         f"the reward of the policies' env: target eta_r {reward.target_viscosity:g}, energy weight "
         f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)
-    items = verdicts(policy_rows, front_points(summary), list(played.values()), best_row["return"]["mean"])
+    items = verdicts(policy_rows, front_points(summary), list(played.values()), best_row)
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
         "agents.comparison); action statistics over the second half of the episodes; the return against "

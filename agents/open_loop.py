@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.rollout import confidence_interval, constant_policy, make_env, run_episode
+from agents.rollout import constant_policy, make_env, run_episode
+from agents.statistics import interval_estimates
 from agents.tasks import run_tasks
 from agents.usage import json_object, usage_error
 
@@ -178,9 +179,11 @@ def summarise_points(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for record in records:
         eps = record["episodes"]
-        eta, eta_lo, eta_hi = confidence_interval([e["eta_second_half"] for e in eps])
+        eta_stats = interval_estimates([e["eta_second_half"] for e in eps])
+        eta, eta_lo, eta_hi = eta_stats["mean"], eta_stats["ci_low"], eta_stats["ci_high"]
         energy = float(np.nanmean([e["energy_second_half"] for e in eps]))
-        ret, ret_lo, ret_hi = confidence_interval([e["return"] for e in eps])
+        ret_stats = interval_estimates([e["return"] for e in eps])
+        ret, ret_lo, ret_hi = ret_stats["mean"], ret_stats["ci_low"], ret_stats["ci_high"]
         rows.append(
             {
                 "label": record["label"],

@@ -127,25 +127,3 @@ def constant_policy(action: Sequence[float]) -> Policy:
     """A policy that always returns ``action``."""
     fixed = np.asarray(action, dtype=np.float32)
     return lambda obs: fixed
-
-
-def confidence_interval(values: Sequence[float], level: float = 0.95) -> tuple[float, float, float]:
-    """Mean and Student-t ``level`` interval of the mean (NaN half-width for fewer than 2 finite values)."""
-    from scipy import stats
-
-    x = np.asarray([v for v in values if math.isfinite(v)], dtype=float)
-    if x.size == 0:
-        return math.nan, math.nan, math.nan
-    mean = float(x.mean())
-    if x.size < 2:
-        return mean, math.nan, math.nan
-    half = float(stats.t.ppf(0.5 + level / 2, x.size - 1) * x.std(ddof=1) / math.sqrt(x.size))
-    return mean, mean - half, mean + half
-
-
-def interquartile_mean(values: Sequence[float]) -> float:
-    """Mean of the middle 50% (25% trimmed from each end; Agarwal et al. 2021's IQM)."""
-    from scipy import stats
-
-    x = np.asarray([v for v in values if math.isfinite(v)], dtype=float)
-    return float(stats.trim_mean(x, 0.25)) if x.size else math.nan
