@@ -1,0 +1,67 @@
+"""Tabulate the box-size study (issue 24) from its sweep folders: per (phi, Mn, N) the box side L, the
+number of field-induced layers of spacing 2.45 a that fit (L / 2.45), and over seeds the mean ± standard
+error of eta_r, N1, N2 and the layer order psi, the layer spacing and the strain at which ordering sets in
+(docs/layering.md); per seed, eta_r and psi.
+
+    python results/box_size/collect.py SWEEP_DIR [SWEEP_DIR ...] > results/box_size/table.md
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+import numpy as np
+
+LAYER_SPACING = 2.45
+"""Spacing of the field-induced layers, in units of a (README; docs/layering.md)."""
+
+
+def mean_se(values: list[float]) -> str:
+    x = np.array([v for v in values if isinstance(v, int | float) and math.isfinite(v)], dtype=float)
+    if x.size == 0:
+        return "–"
+    if x.size == 1:
+        return f"{x[0]:.3g}"
+    return f"{x.mean():.3g} ± {x.std(ddof=1) / math.sqrt(x.size):.2g}"
+
+
+def per_seed(values: list[float]) -> str:
+    return ", ".join(f"{v:.2f}" for v in values)
+
+
+def number(value: object) -> float:
+    return float(value) if isinstance(value, int | float) else math.nan
+
+
+def main(folders: list[str]) -> None:
+    groups: dict[tuple[float, float, int], list[dict]] = defaultdict(list)
+    for folder in folders:
+        for result in sorted(Path(folder).glob("*/result.json")):
+            r = json.loads(result.read_text())
+            groups[(r["volume_fraction"], number(r["mason_number"]), r["n_particles"])].append(r)
+    print(
+        "| phi | Mn | N | L/a | L/2.45a | seeds | strain | eta_r | N1 | N2 | layer order psi | spacing/a "
+        "| onset strain | eta_r per seed | psi per seed |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for (phi, mason, n), runs in sorted(groups.items(), key=lambda kv: (kv[0][0], -kv[0][1], kv[0][2])):
+        side = (n * 4.0 / 3.0 * math.pi / phi) ** (1.0 / 3.0)
+        runs.sort(key=lambda r: r["seed"])
+        print(
+            f"| {phi:g} | {'inf' if math.isinf(mason) else f'{mason:g}'} | {n} | {side:.2f} | "
+            f"{side / LAYER_SPACING:.2f} | {len(runs)} | {max(r['strain'] for r in runs):.0f} | "
+            f"{mean_se([r['relative_viscosity'] for r in runs])} | {mean_se([r['n1'] for r in runs])} | "
+            f"{mean_se([r['n2'] for r in runs])} | {mean_se([number(r.get('layer_order')) for r in runs])} | "
+            f"{mean_se([number(r.get('layer_spacing')) for r in runs])} | "
+            f"{mean_se([number(r.get('layer_onset_strain')) for r in runs])} | "
+            f"{per_seed([r['relative_viscosity'] for r in runs])} | "
+            f"{per_seed([number(r.get('layer_order')) for r in runs])} |"
+        )
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
