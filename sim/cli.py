@@ -44,7 +44,7 @@ from sim.config import (
     SimulationConfig,
 )
 from sim.geometry.configurations import MAX_VOLUME_FRACTION, MIN_VOLUME_FRACTION
-from sim.tasks import parse_seeds
+from sim.tasks import MAX_SEEDS, parse_seeds
 
 FLAGS = {
     "n_particles": "--n-particles",
@@ -176,14 +176,16 @@ def _seed_list(text: str) -> list[int]:
     text = text.strip()
     if text.isdigit():
         count = int(text)
-        if count < 1:
+        if not 1 <= count <= MAX_SEEDS:
             raise argparse.ArgumentTypeError(
-                f"a count of seeds must be >= 1 (3 = seeds 1, 2, 3), got {text!r}"
+                f"a count of seeds must be in [1, {MAX_SEEDS}] (3 = seeds 1, 2, 3), got {text!r}"
             )
         return list(range(1, count + 1))
     try:
         return parse_seeds(text)
-    except ValueError:
+    except ValueError as exc:
+        if str(exc).startswith("at most"):
+            raise argparse.ArgumentTypeError(str(exc)) from None
         raise argparse.ArgumentTypeError(
             "must be a count (3 = seeds 1, 2, 3), a list (1,4) or ranges (0-4, 0,2,5-7) of non-negative "
             f"integers, got {text!r}"
@@ -574,9 +576,11 @@ def _spec_arguments(args: argparse.Namespace) -> list[str]:
     else:
         flag, where = "--spec", args.spec
         try:
-            text = Path(args.spec).read_text()
+            text = Path(args.spec).read_text(encoding="utf-8")
         except OSError as exc:
             parser.error(f"--spec {args.spec}: cannot be read: {exc.strerror or exc}")
+        except UnicodeDecodeError as exc:
+            parser.error(f"--spec {args.spec}: not a YAML text file (not UTF-8 at byte {exc.start})")
     import yaml
 
     try:
