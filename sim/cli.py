@@ -26,6 +26,7 @@ import argparse
 import itertools
 import json
 import math
+import os
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -208,6 +209,30 @@ def _directory(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"must name a directory, got {text!r}")
     return text
+
+
+def check_output_directory(parser: argparse.ArgumentParser, flag: str, path: str | Path) -> Path:
+    """Exit 2 naming ``flag`` unless ``path`` is a folder, or can be created as one, and can be written.
+
+    Nothing is created: the nearest existing folder above ``path`` must be a writable folder. The one
+    check of the output folders of ``sweep``, ``figures`` and ``flow-curve``."""
+    out = Path(path)
+    if not str(path).strip():
+        parser.error(f"{flag} must name a directory, got {str(path)!r}")
+    if out.exists() and not out.is_dir():
+        parser.error(f"{flag} {out} exists and is not a directory")
+    existing = next((p for p in (out, *out.absolute().parents) if p.exists()), None)
+    if existing is None or not existing.is_dir():
+        parser.error(f"{flag} {out} cannot be created: {existing} is not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        parser.error(f"{flag} {out} cannot be written: {existing} is read-only")
+    return out
+
+
+def output_error(parser: argparse.ArgumentParser, flag: str, exc: OSError) -> NoReturn:
+    """Exit 2 for an ``OSError`` raised while writing into ``flag``'s folder, naming the file."""
+    where = exc.filename if exc.filename is not None else "it"
+    parser.error(f"{flag}: cannot write {where}: {exc.strerror or exc}")
 
 
 def _scheduler(text: str) -> str:
@@ -765,9 +790,7 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
     if args.out is None:
         parser.error("the following arguments are required: --out")
     configs = _sweep_configs(args)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        parser.error(f"--out {out} exists and is not a directory")
+    out = check_output_directory(parser, "--out", args.out)
 
     from sim.io import json_ready, read_json
     from sim.run import COMPILE_NOTICE, compiled_kernels_cached
@@ -817,9 +840,7 @@ def _flow_curve(args: argparse.Namespace) -> int:
     from sim.tasks import TaskFailure, run_tasks
 
     parser: argparse.ArgumentParser = args.parser
-    out = Path(args.out)
-    if not args.out or (out.exists() and not out.is_dir()):
-        parser.error(f"--out must name a directory (created if missing), got {args.out!r}")
+    out = check_output_directory(parser, "--out", args.out)
     specs = []
     for mason in args.mason:
         try:
@@ -883,11 +904,17 @@ def _figures(args: argparse.Namespace) -> int:
     """``python -m sim figures``."""
     from sim.sweep_figures import make_figures
 
+    parser: argparse.ArgumentParser = args.parser
+    out = Path(args.directory) / "figures" if args.out is None else Path(args.out)
+    flag = "--out" if args.out is not None else "DIR"
+    if args.out is not None or Path(args.directory).is_dir():  # else make_figures names DIR
+        check_output_directory(parser, flag, out)
     try:
-        written = make_figures(args.directory, args.out, log=None if args.quiet else print)
+        written = make_figures(args.directory, out, log=None if args.quiet else print)
     except (FileNotFoundError, ValueError) as exc:
-        parser: argparse.ArgumentParser = args.parser
         parser.error(str(exc))
+    except OSError as exc:
+        output_error(parser, flag, exc)
     if not args.quiet:
         print(f"{len(written)} files in {Path(written[0]).parent if written else args.out}")
     return 0
