@@ -89,3 +89,22 @@ def test_train_refuses_to_resume_without_the_checkpoints_normalisation(
     )
     assert "ckpt_vecnormalize_64_steps.pkl, which is missing" in err and f"--out {copy}" in err
     assert sorted(p.name for p in copy.rglob("*")) == before
+
+
+def test_train_without_a_validation_and_after_a_failed_attempt(trained, tmp_path: Path) -> None:
+    """A failed attempt (SB3 refuses a policy argument after config.yml was written) no longer blocks the
+    corrected command; a run too short for a validation writes null, not -Infinity (invalid JSON)."""
+    out = tmp_path / "short"
+    first = [*COMMON, "--timesteps", "32", "--out", str(out), "--hyperparams", *SHORT]
+    with pytest.raises(TypeError, match="bogus_argument"):
+        train.main([*first, "policy_kwargs={bogus_argument: 1}"])
+    assert (out / "config.yml").exists() and not (out / "result.json").exists()
+    train.main([*first, "eval_freq=1000"])  # was: "holds a different run (config.yml differs)"
+    text = (out / "result.json").read_text()
+
+    def strict(constant: str) -> None:
+        raise AssertionError(f"result.json holds {constant}, which is not JSON")
+
+    result = json.loads(text, parse_constant=strict)
+    assert result["best_validation_return"] is None and result["last_validation_return"] is None
+    assert result["timesteps"] >= 32
