@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.tasks import parse_seeds, run_tasks
+from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
     directory,
@@ -46,6 +46,7 @@ from agents.usage import (
     json_object,
     output_directory,
     scheduler_address,
+    seed_list,
     usage_error,
 )
 
@@ -493,7 +494,9 @@ def build_parser() -> argparse.ArgumentParser:
     seeds.add_argument(
         "--seed", type=integer_at_least(0), default=None, help="one training seed >= 0; OUT is the run folder"
     )
-    seeds.add_argument("--seeds", default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>")
+    seeds.add_argument(
+        "--seeds", type=seed_list, default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>"
+    )
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument(
         "--timesteps", type=integer_at_least(1), default=None, help="override n_timesteps, >= 1"
@@ -534,10 +537,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     probe.close()
     command = " ".join([sys.executable, "-m", "agents.train", *(argv if argv is not None else sys.argv[1:])])
     if args.seeds is not None:
-        try:
-            seeds = parse_seeds(args.seeds)
-        except ValueError as error:
-            usage_error(PROG, f"--seeds: {error}")
+        seeds = args.seeds
         outs = [args.out / f"seed{s}" for s in seeds]
     else:
         seeds = [0 if args.seed is None else args.seed]

@@ -61,6 +61,17 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
+def seed_list(text: str) -> list[int]:
+    """An argparse type for ``--seeds``: ``0-4`` or ``0,2,5-7`` (non-negative, at most ``MAX_SEEDS``),
+    as :func:`sim.tasks.parse_seeds` reads them; the sorted seeds."""
+    from agents.tasks import parse_seeds
+
+    try:
+        return parse_seeds(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
 def scheduler_address(text: str) -> str:
     """An argparse type for ``--scheduler``: a Dask scheduler address, ``tcp://HOST:PORT`` (or another
     ``protocol://`` form)."""

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from agents import open_loop, train
+from agents import demo, open_loop, train
 from agents.train import HyperparameterError, check_hyperparameters, run_conflict
 
 ENV = "dipenv/FieldMagnitudeTiny-v0"
@@ -27,6 +27,7 @@ def refused(capsys: pytest.CaptureFixture[str], module: object, arguments: list[
 
 
 TRAIN_BAD = [
+    (["--seeds", "0-99999999999"], "argument --seeds: at most 10000 seeds are allowed, got 100000000000"),
     (["--timesteps", "0"], "argument --timesteps: must be an integer >= 1, got '0'"),  # was exit 0, -Infinity
     (["--timesteps", "-5"], "argument --timesteps: must be an integer >= 1, got '-5'"),
     (["--n-envs", "0"], "argument --n-envs: must be an integer >= 1, got '0'"),
@@ -128,3 +129,34 @@ def test_open_loop_refuses_a_repeated_direction(tmp_path: Path, capsys: pytest.C
         ["--env", "dipenv/FieldVectorTiny-v0", "--out", str(tmp_path / "o"), "--directions", "x,y,x"],
     )
     assert "--directions lists a direction twice: 'x,y,x'" in err
+
+
+DEMO_BAD = [
+    (["--seeds", "5-2"], "argument --seeds: seeds must look like 0-4 or 0,2,5-7 (non-negative), got '5-2'"),
+    (["--timesteps", "0"], "argument --timesteps: must be an integer >= 1, got '0'"),
+    (["--out", ""], "argument --out: must name a directory, got ''"),
+]
+
+
+@pytest.mark.parametrize(("arguments", "needle"), DEMO_BAD, ids=[" ".join(a) for a, _ in DEMO_BAD])
+def test_demo_checks_every_argument_before_any_stage(
+    arguments: list[str], needle: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--seeds 5-2`` was refused only after the open-loop stage had run, as agents.train's error."""
+    out = tmp_path / "demo"
+    with pytest.raises(SystemExit) as exit_:
+        demo.main(["--out", str(out), *arguments])
+    captured = capsys.readouterr()
+    assert exit_.value.code == 2
+    assert f"python -m agents.demo: error: {needle}" in captured.err, captured.err
+    assert "open-loop" not in captured.out and not out.exists()
+
+
+def test_demo_refuses_an_out_that_is_a_file(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    afile = tmp_path / "notes.txt"
+    afile.write_text("keep\n")
+    with pytest.raises(SystemExit) as exit_:
+        demo.main(["--out", str(afile)])
+    assert exit_.value.code == 2
+    err = capsys.readouterr().err
+    assert f"python -m agents.demo: error: --out {afile} exists and is not a directory" in err
