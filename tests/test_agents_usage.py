@@ -41,7 +41,7 @@ TRAIN_BAD = [
     (["--hyperparams", "n_epochs=2.5"], "--hyperparams: n_epochs must be an integer, got 2.5"),
     (["--hyperparams", "normalize=3"], "--hyperparams: normalize must be true or false, got 3"),
     (["--hyperparams", "policy_kwargs=[1]"], "--hyperparams: policy_kwargs must be a mapping, got [1]"),
-    (["--env-kwargs", '{"bogus": 1}'], "--env-kwargs {\"bogus\": 1}: "),
+    (["--env-kwargs", '{"bogus": 1}'], '--env-kwargs {"bogus": 1}: '),
     (["--env-kwargs", '{"episode_steps": 0}'], "episode_steps must be an integer >= 1, got 0"),
     (["--env-kwargs", '{"split_sizes": {"train": 0}}'], "--env-kwargs"),
 ]
@@ -93,8 +93,8 @@ OPEN_LOOP_BAD = [
     (["--env", "CartPole-v1"], "--env must be one of dipenv/FieldMagnitude-v0, "),  # a foreign env
     (["--workers", "0"], "argument --workers: must be an integer >= 1, got '0'"),
     (["--scheduler", "nowhere"], "argument --scheduler: must be a Dask scheduler address"),
-    (["--env-kwargs", '{"bogus": 1}'], "--env-kwargs {\"bogus\": 1}: "),
-    (["--env-kwargs", '{"mason_min": -1}'], "--env-kwargs {\"mason_min\": -1}: "),
+    (["--env-kwargs", '{"bogus": 1}'], '--env-kwargs {"bogus": 1}: '),
+    (["--env-kwargs", '{"mason_min": -1}'], '--env-kwargs {"mason_min": -1}: '),
     (["--out", ""], "argument --out: must name a directory, got ''"),
     (["--directions", "x"], "--directions is for the vector-field envs; --env dipenv/FieldMagnitudeTiny-v0"),
     (["--mason", "1,off,1.0"], "--mason lists Mn1 twice in '1,off,1.0' (each point once)"),
@@ -103,9 +103,7 @@ OPEN_LOOP_BAD = [
 ]
 
 
-@pytest.mark.parametrize(
-    ("arguments", "needle"), OPEN_LOOP_BAD, ids=[" ".join(a) for a, _ in OPEN_LOOP_BAD]
-)
+@pytest.mark.parametrize(("arguments", "needle"), OPEN_LOOP_BAD, ids=[" ".join(a) for a, _ in OPEN_LOOP_BAD])
 def test_open_loop_refuses_before_any_set_up(
     arguments: list[str], needle: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -160,3 +158,41 @@ def test_demo_refuses_an_out_that_is_a_file(tmp_path: Path, capsys: pytest.Captu
     assert exit_.value.code == 2
     err = capsys.readouterr().err
     assert f"python -m agents.demo: error: --out {afile} exists and is not a directory" in err
+
+
+HYPERPARAMETER_FILES = [
+    ("phi: [0.3\n", "cannot be read as YAML"),  # was a yaml traceback
+    ("- 1\n", "must map env ids to hyperparameters"),  # was a TypeError
+    (f"{ENV}: 3\n", f"the entry {ENV} must be a mapping of hyperparameters, got 3"),
+    (f"{ENV}:\n  n_timesteps: 10\n", f"the entry {ENV} lacks n_envs, policy, normalize"),
+    (
+        f"{ENV}:\n  n_timesteps: 10\n  n_envs: 1\n  policy: MlpPolicy\n  normalize: true\n  eval_freq: 5\n"
+        "  checkpoint_freq: 5\n  n_stepz: 8\n",
+        f"entry {ENV}: unknown hyperparameter 'n_stepz' for ppo",  # was blamed on --env, or a traceback
+    ),
+]
+
+
+@pytest.mark.parametrize(("text", "needle"), HYPERPARAMETER_FILES, ids=[n for _, n in HYPERPARAMETER_FILES])
+def test_an_invalid_hyperparameter_file_is_named(
+    text: str,
+    needle: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    folder = tmp_path / "hyperparams"
+    folder.mkdir()
+    (folder / "ppo.yml").write_text(text)
+    monkeypatch.setattr(train, "HYPERPARAMS_DIR", folder)
+    err = refused(capsys, train, ["--env", ENV, "--out", str(tmp_path / "out")])
+    assert f"error: hyperparameter file {folder / 'ppo.yml'}" in err and needle in err, err
+    assert "--env" not in err
+
+
+def test_the_packaged_hyperparameter_files_pass_the_checks() -> None:
+    import dipenv
+
+    for algo in train.ALGOS:
+        for env_id in dipenv.ENV_IDS:
+            train.load_hyperparams(algo, env_id)
