@@ -48,7 +48,15 @@ import numpy as np
 from agents.open_loop import _finite, read_json, write_json
 from agents.rollout import make_env, run_episode
 from agents.tasks import run_tasks
-from agents.usage import json_object, usage_error
+from agents.usage import (
+    checked_env,
+    directory,
+    integer_at_least,
+    json_object,
+    output_directory,
+    scheduler_address,
+    usage_error,
+)
 
 PROG = "python -m agents.controllers"
 
@@ -254,9 +262,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--split", default="test")
     parser.add_argument("--episodes", type=int, default=None, help="default: the whole split")
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
-    parser.add_argument("--out", required=True, type=Path)
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--scheduler", default=None)
+    parser.add_argument("--out", required=True, type=directory)
+    parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
     return parser
 
 
@@ -264,8 +272,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = build_parser().parse_args(argv)
     if str(args.out) in ("", "."):
         usage_error(PROG, "--out must name a folder for the results, got the current directory")
-    if args.workers < 1:
-        usage_error(PROG, f"--workers must be >= 1, got {args.workers}")
+    output_directory(PROG, args.out)
     env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
     try:
         grid = parse_grid(args.controller, args.grid)
@@ -274,10 +281,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             make_controller(args.controller, params)
     except ValueError as error:
         usage_error(PROG, str(error))
-    try:
-        env = make_env(args.env, {**env_kwargs, "progress": False})
-    except Exception as error:  # gym's NameNotFound, a bad env argument
-        usage_error(PROG, f"--env/--env-kwargs: {error}")
+    env = checked_env(PROG, args.env, env_kwargs, progress=False)
     unwrapped: Any = env.unwrapped
     if not hasattr(unwrapped, "fixed_schedule"):
         usage_error(PROG, f"--env {args.env} is not a thickening-control environment")

@@ -18,24 +18,28 @@ import time
 from pathlib import Path
 
 from agents import evaluate, open_loop, train
+from agents.usage import directory, integer_at_least, output_directory, seed_list
 
 ENV_ID = "dipenv/FieldMagnitudeTiny-v0"
+PROG = "python -m agents.demo"
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.demo",
+        prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--out", type=Path, default=Path("runs/demo"))
-    parser.add_argument("--timesteps", type=int, default=2048)
-    parser.add_argument("--seeds", default="0-1")
-    args = parser.parse_args(argv)
+    parser.add_argument("--out", type=directory, default=Path("runs/demo"))
+    parser.add_argument("--timesteps", type=integer_at_least(1), default=2048, help="per seed, >= 1")
+    parser.add_argument("--seeds", type=seed_list, default="0-1", help="training seeds: 0-1 or 0,2,5-7")
+    args = parser.parse_args(argv)  # every argument checked here, before any stage runs
+    output_directory(PROG, args.out)
+    seeds = ",".join(str(s) for s in args.seeds)
     tic = time.perf_counter()
     print("== 1/3 open-loop baseline (constant fields) ==", flush=True)
     open_loop.main(["--env", ENV_ID, "--out", str(args.out / "open_loop"), "--mason", "off,5,1,0.3,0.1"])
-    print(f"== 2/3 PPO training ({args.timesteps} steps per seed, seeds {args.seeds}) ==", flush=True)
+    print(f"== 2/3 PPO training ({args.timesteps} steps per seed, seeds {seeds}) ==", flush=True)
     train.main(
         [
             "--env",
@@ -43,7 +47,7 @@ def main(argv: list[str] | None = None) -> None:
             "--algo",
             "ppo",
             "--seeds",
-            args.seeds,
+            seeds,
             "--out",
             str(args.out / "ppo"),
             "--timesteps",

@@ -53,9 +53,66 @@ from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, 
 from agents.rollout import make_env, run_episode
 from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
-from agents.usage import directory, usage_error
+from agents.usage import directory, integer_at_least, output_directory, scheduler_address, usage_error
 
 PROG = "python -m agents.evaluate"
+
+
+def read_run_config(run: Path) -> dict[str, Any]:
+    """A run's ``config.yml`` (agents.train), or exit 2 naming the file when it is missing, corrupt or of
+    another shape."""
+    path = run / "config.yml"
+    try:
+        config = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        usage_error(PROG, f"RUN_DIRS: {path} cannot be read ({type(error).__name__}: {error})")
+    needed = ("env_id", "env_kwargs", "algo", "seed")
+    if not isinstance(config, dict) or any(k not in config for k in needed):
+        usage_error(PROG, f"RUN_DIRS: {path} is not an agents.train config.yml (needs {', '.join(needed)})")
+    if config["algo"] not in ("ppo", "sac") or not isinstance(config["env_kwargs"], dict):
+        usage_error(PROG, f"RUN_DIRS: {path}: algo must be ppo or sac and env_kwargs a mapping")
+    return config
+
+
+def read_baseline(folder: Path) -> tuple[dict[str, Any], list[Path]]:
+    """``pareto.json`` and the point files of an ``agents.open_loop`` folder, or exit 2 naming
+    ``--baseline`` when the folder is missing, empty or corrupt."""
+    path = folder / "pareto.json"
+    if not folder.is_dir():
+        usage_error(PROG, f"--baseline {folder} is not a folder (give an agents.open_loop --out)")
+    try:
+        pareto = read_json(path)
+    except (OSError, ValueError) as error:
+        usage_error(
+            PROG, f"--baseline {folder}: {path} cannot be read ({type(error).__name__}: {error}); is it an "
+            "agents.open_loop --out that has finished?"
+        )
+    if not isinstance(pareto, dict) or any(k not in pareto for k in ("env_id", "env_kwargs", "split")):
+        usage_error(PROG, f"--baseline {folder}: {path} is not an agents.open_loop pareto.json")
+    points = sorted((folder / "points").glob("*.json"))
+    if not points:
+        usage_error(PROG, f"--baseline {folder}: no points/*.json in it (rerun agents.open_loop)")
+    return pareto, points
+
+
+def check_loadable(run: Path, algo: str, model_file: Path, stats_file: Path, normalize: bool) -> None:
+    """Exit 2 naming the file unless the policy (and its statistics, when used) load: a corrupt or
+    truncated ``model.zip`` or ``vecnormalize.pkl`` is refused before any episode is played."""
+    from stable_baselines3 import PPO, SAC
+
+    try:
+        (PPO if algo == "ppo" else SAC).load(str(model_file), device="cpu")
+    except Exception as error:  # a zip error, a pickle error, another algorithm's file: all unloadable
+        kind = type(error).__name__
+        usage_error(PROG, f"RUN_DIRS: {model_file} cannot be loaded as a {algo} model ({kind}: {error})")
+    if normalize:
+        try:
+            with open(stats_file, "rb") as handle:
+                stats = pickle.load(handle)
+        except Exception as error:
+            usage_error(PROG, f"RUN_DIRS: {stats_file} cannot be loaded ({type(error).__name__}: {error})")
+        if not hasattr(stats, "normalize_obs"):
+            usage_error(PROG, f"RUN_DIRS: {stats_file} holds no VecNormalize statistics")
 
 
 def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
@@ -68,7 +125,7 @@ def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
             key, runs = path, sorted(p.parent for p in path.glob("*/model.zip"))
         if not runs:
             usage_error(PROG, f"RUN_DIRS: {path}: no model.zip in it or in its subfolders")
-        config = yaml.safe_load((runs[0] / "config.yml").read_text())
+        config = read_run_config(runs[0])
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
     return groups
@@ -453,8 +510,15 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
     parser.add_argument("--out", required=True, type=directory)
-    parser.add_argument("--split", default=None, help="start-state split (default: the baseline's)")
-    parser.add_argument("--episodes", type=int, default=None, help="first N states (default: the baseline's)")
+    parser.add_argument(
+        "--split",
+        default=None,
+        choices=("train", "validation", "test"),
+        help="start-state split (default: the baseline's)",
+    )
+    parser.add_argument(
+        "--episodes", type=integer_at_least(1), default=None, help="first N states (default: the baseline's)"
+    )
     parser.add_argument(
         "--model",
         choices=("final", "best"),
@@ -467,8 +531,8 @@ def build_parser() -> argparse.ArgumentParser:
         default="mean",
         help="play each policy's mean action, its sampled actions (seeded per start state), or both",
     )
-    parser.add_argument("--workers", type=int, default=1)
-    parser.add_argument("--scheduler", default=None)
+    parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
+    parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
     return parser
 
 
@@ -478,11 +542,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         usage_error(
             PROG, "give RUN_DIRS (trained runs) or --controllers (agents.controllers folders), or both"
         )
-    pareto = read_json(args.baseline / "pareto.json")
+    output_directory(PROG, args.out)
+    pareto, point_files = read_baseline(args.baseline)
     groups = find_runs(args.runs) if args.runs else {}
-    configs = {
-        run: yaml.safe_load((run / "config.yml").read_text()) for runs in groups.values() for run in runs
-    }
+    configs = {run: read_run_config(run) for runs in groups.values() for run in runs}
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
         if env_id != pareto["env_id"]:
@@ -505,7 +568,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
     probe.close()
-    points = [rescore(read_json(p), reward) for p in sorted((args.baseline / "points").glob("*.json"))]
+    try:
+        points = [rescore(read_json(p), reward) for p in point_files]
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        kind = type(error).__name__
+        usage_error(PROG, f"--baseline {args.baseline}: a point file cannot be read ({kind}: {error})")
     summary = summarise_points(points)
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     if args.episodes is not None and not 1 <= args.episodes <= len(baseline_indices):
@@ -533,6 +600,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     f"statistics {stats_file} are missing; its policy cannot be played on raw "
                     "observations (restore the file, or evaluate another --model)",
                 )
+            check_loadable(run, configs[run]["algo"], model_file, stats_file, normalize)
             payloads.append(
                 {
                     "run": str(run),

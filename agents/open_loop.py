@@ -31,7 +31,16 @@ import numpy as np
 from agents.rollout import constant_policy, make_env, run_episode
 from agents.statistics import interval_estimates
 from agents.tasks import run_tasks
-from agents.usage import json_object, usage_error
+from agents.usage import (
+    checked_env,
+    directory,
+    integer_at_least,
+    json_object,
+    output_directory,
+    scheduler_address,
+    split_size,
+    usage_error,
+)
 
 PROG = "python -m agents.open_loop"
 
@@ -266,30 +275,36 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--env", required=True, help="environment id, e.g. dipenv/FieldMagnitude-v0")
-    parser.add_argument("--out", required=True, type=Path, help="output folder (created; reruns resume)")
+    parser.add_argument("--out", required=True, type=directory, help="output folder (created; reruns resume)")
     parser.add_argument(
         "--mason", default=None, help="comma-separated Mason numbers or 'off' (default: a grid)"
     )
-    parser.add_argument("--directions", default="y,x,z,xy", help="vector env only: named directions")
+    parser.add_argument(
+        "--directions",
+        default=None,
+        help=f"vector envs only: named directions from {', '.join(DIRECTIONS)} (default: all of them)",
+    )
     parser.add_argument("--split", default="test", choices=("train", "validation", "test"))
     parser.add_argument("--episodes", type=int, default=None, help="start states (default: the whole split)")
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
-    parser.add_argument("--workers", type=int, default=1, help="local worker processes")
-    parser.add_argument("--scheduler", default=None, help="Dask scheduler address (instead of local workers)")
+    parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
+    parser.add_argument(
+        "--scheduler",
+        type=scheduler_address,
+        default=None,
+        help="Dask scheduler address, tcp://HOST:PORT (instead of local workers)",
+    )
     return parser
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     args = build_parser().parse_args(argv)
     env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
-    env = make_env(args.env, {**env_kwargs, "progress": True})
+    output_directory(PROG, args.out)
+    env = checked_env(PROG, args.env, env_kwargs, progress=True)
     unwrapped: Any = env.unwrapped
     mapping = unwrapped.mapping
-    episodes = unwrapped.split_sizes[args.split] if args.episodes is None else args.episodes
-    if not 1 <= episodes <= unwrapped.split_sizes[args.split]:
-        usage_error(
-            PROG, f"--episodes must be in [1, {unwrapped.split_sizes[args.split]}] for --split {args.split}"
-        )
+    episodes = split_size(PROG, unwrapped, args.split, args.episodes)
     if args.mason is None:
         masons = [m for m in parse_mason(",".join(str(v) for v in DEFAULT_MASON))]
         masons = [m for m in masons if math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max]
@@ -300,17 +315,27 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             masons = parse_mason(args.mason)
         except ValueError:
             usage_error(PROG, f"--mason takes 'off' or numbers separated by commas, got {args.mason!r}")
+        twice = sorted({m for m in masons if masons.count(m) > 1})
+        if twice:
+            listed = ", ".join(point_label(m, None) for m in twice)
+            usage_error(PROG, f"--mason lists {listed} twice in {args.mason!r} (each point once)")
     for m in masons:
         if not (math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max):
             usage_error(
                 PROG, f"--mason {m:g} is outside the env's range [{mapping.mason_min}, {mapping.mason_max}]"
             )
     directions: list[str | None] = [None]
+    if not unwrapped.vector_field and args.directions is not None:
+        usage_error(
+            PROG, f"--directions is for the vector-field envs; --env {args.env} sets the field strength only"
+        )
     if unwrapped.vector_field:
-        directions = [d.strip() for d in args.directions.split(",")]
+        directions = [d.strip() for d in (args.directions or ",".join(DIRECTIONS)).split(",")]
         for d in directions:
             if d not in DIRECTIONS:
                 usage_error(PROG, f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
+        if len(set(directions)) < len(directions):
+            usage_error(PROG, f"--directions lists a direction twice: {args.directions!r}")
     unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
     env.close()
     (args.out / "points").mkdir(parents=True, exist_ok=True)

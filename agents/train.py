@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 import functools
 import json
+import math
 import multiprocessing as mp
 import re
 import sys
@@ -37,8 +38,17 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.tasks import parse_seeds, run_tasks
-from agents.usage import directory, json_object, usage_error
+from agents.tasks import run_tasks
+from agents.usage import (
+    checked_env,
+    directory,
+    integer_at_least,
+    json_object,
+    output_directory,
+    scheduler_address,
+    seed_list,
+    usage_error,
+)
 
 PROG = "python -m agents.train"
 
@@ -47,19 +57,133 @@ ALGOS = ("ppo", "sac")
 _TRAINING_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "eval_freq", "checkpoint_freq")
 
 
+_CONSTRUCTOR_SET = (
+    "self", "policy", "env", "seed", "device", "tensorboard_log", "verbose", "_init_setup_model"
+)
+"""Arguments of the algorithm's constructor that ``train_run`` sets itself (not hyperparameters)."""
+
+_RANGES: dict[str, tuple[float, float, bool]] = {
+    "learning_rate": (0.0, math.inf, False),
+    "n_steps": (1, math.inf, True),
+    "batch_size": (2, math.inf, True),
+    "n_epochs": (1, math.inf, True),
+    "gamma": (0.0, 1.0, True),
+    "gae_lambda": (0.0, 1.0, True),
+    "clip_range": (0.0, math.inf, False),
+    "vf_coef": (0.0, math.inf, True),
+    "max_grad_norm": (0.0, math.inf, False),
+    "buffer_size": (1, math.inf, True),
+    "learning_starts": (0, math.inf, True),
+    "tau": (0.0, 1.0, False),
+    "train_freq": (1, math.inf, True),
+    "target_update_interval": (1, math.inf, True),
+    "n_timesteps": (1, math.inf, True),
+    "n_envs": (1, math.inf, True),
+    "eval_freq": (1, math.inf, True),
+    "checkpoint_freq": (1, math.inf, True),
+}
+"""Valid ranges of the numeric hyperparameters: (low, high, low included); ``high`` is always included.
+``tau`` > 0; ``batch_size`` >= 2 (PPO normalises advantages over a batch)."""
+
+
+class HyperparameterError(ValueError):
+    """A hyperparameter refused; the message names where it came from (the packaged file or
+    ``--hyperparams``)."""
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def check_hyperparameters(algo: str, params: dict[str, Any], source: str) -> None:
+    """Raise :class:`HyperparameterError` naming ``source`` unless every key of ``params`` is an argument
+    of the algorithm's constructor (or one of the training keys) and every value has the type of that
+    argument's default and lies in its range (:data:`_RANGES`). Cheap: nothing is built."""
+    import inspect
+
+    from stable_baselines3 import PPO, SAC
+
+    algo_cls: Any = PPO if algo == "ppo" else SAC
+    defaults = {
+        name: parameter.default
+        for name, parameter in inspect.signature(algo_cls.__init__).parameters.items()
+        if name not in _CONSTRUCTOR_SET
+    }
+    allowed = sorted([*_TRAINING_KEYS, *defaults])
+    for key, value in params.items():
+        if key not in allowed:
+            raise HyperparameterError(
+                f"{source}: unknown hyperparameter {key!r} for {algo} (the keys: {', '.join(allowed)})"
+            )
+        default = defaults.get(key)
+        if key in ("n_timesteps", "n_envs", "eval_freq", "checkpoint_freq"):
+            default = 1
+        elif key == "normalize":
+            default = True
+        elif key == "policy":
+            default = "MlpPolicy"
+        problem = None
+        if isinstance(default, bool):
+            problem = None if isinstance(value, bool) else "true or false"
+        elif isinstance(default, int) and not (key == "train_freq" and isinstance(value, list)):
+            problem = None if isinstance(value, int) and not isinstance(value, bool) else "an integer"
+        elif isinstance(default, float):
+            problem = None if _number(value) else "a number"
+        elif isinstance(default, str):
+            problem = None if isinstance(value, str) or (key == "ent_coef" and _number(value)) else "a string"
+        elif key.endswith("_kwargs"):
+            problem = None if value is None or isinstance(value, dict) else "a mapping"
+        if problem is None and key in _RANGES and _number(value):
+            low, high, closed = _RANGES[key]
+            if not ((value >= low if closed else value > low) and value <= high and math.isfinite(value)):
+                kind = "a number" if isinstance(default, float) else "an integer"
+                problem = f"{kind} in {'[' if closed else '('}{low}, {high}]"
+        if problem is not None:
+            raise HyperparameterError(f"{source}: {key} must be {problem}, got {value!r}")
+    if algo == "ppo" and int(params.get("n_steps", 2)) * int(params.get("n_envs", 1)) < 2:
+        raise HyperparameterError(f"{source}: n_steps * n_envs must be >= 2 (one rollout), got 1")
+
+
+def hyperparameter_file(algo: str) -> Path:
+    """``hyperparams/<algo>.yml``."""
+    return HYPERPARAMS_DIR / f"{algo}.yml"
+
+
 def load_hyperparams(algo: str, env_id: str, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
-    """The entry for ``env_id`` in ``hyperparams/<algo>.yml`` with ``overrides`` applied.
+    """The entry for ``env_id`` in ``hyperparams/<algo>.yml`` with ``overrides`` applied, checked
+    (:func:`check_hyperparameters`: the file's entry, then the overrides).
 
     Raises:
-        ValueError: for an unknown algorithm or an env id without an entry.
+        ValueError: for an unknown algorithm or an env id without an entry;
+        HyperparameterError: for a file that is not a YAML mapping of env ids to mappings, or a refused
+        key or value (naming the file and entry, or ``--hyperparams``).
     """
     if algo not in ALGOS:
         raise ValueError(f"algo must be one of {', '.join(ALGOS)}, got {algo!r}")
-    table = yaml.safe_load((HYPERPARAMS_DIR / f"{algo}.yml").read_text())
+    path = hyperparameter_file(algo)
+    try:
+        table = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        raise HyperparameterError(f"hyperparameter file {path}: cannot be read as YAML ({error})") from None
+    if not isinstance(table, dict):
+        raise HyperparameterError(f"hyperparameter file {path}: must map env ids to hyperparameters")
     if env_id not in table:
-        raise ValueError(f"no {algo} hyperparameters for {env_id!r} in {HYPERPARAMS_DIR / (algo + '.yml')}")
+        raise ValueError(f"no {algo} hyperparameters for {env_id!r} in {path}")
+    if not isinstance(table[env_id], dict):
+        raise HyperparameterError(
+            f"hyperparameter file {path}: the entry {env_id} must be a mapping of hyperparameters, got "
+            f"{table[env_id]!r}"
+        )
     params = dict(table[env_id])
-    params.update(overrides or {})
+    missing = [key for key in _TRAINING_KEYS if key not in params]
+    if missing:
+        raise HyperparameterError(
+            f"hyperparameter file {path}: the entry {env_id} lacks {', '.join(missing)}"
+        )
+    check_hyperparameters(algo, params, f"hyperparameter file {path}, entry {env_id}")
+    if overrides:
+        params.update(overrides)
+        check_hyperparameters(algo, params, "--hyperparams")
     return params
 
 
@@ -121,6 +245,71 @@ def missing_normalisation(out: Path, hyperparams: dict[str, Any]) -> str | None:
     )
 
 
+def has_progress(out: Path) -> bool:
+    """True when ``out`` holds more than a failed attempt's ``config.yml``: a checkpoint, a model or a
+    result (an attempt that failed before its first checkpoint left nothing to continue)."""
+    return (
+        (out / "result.json").exists()
+        or (out / "model.zip").exists()
+        or _latest_checkpoint(out / "checkpoints") is not None
+    )
+
+
+def run_identity(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    settings: dict[str, Any],
+    algo: str,
+    seed: int,
+    hp: dict[str, Any],
+) -> dict[str, Any]:
+    """What ``config.yml`` records of a run and a rerun must match (``settings``: the env's resolved
+    defaults, so a changed env default is a different run)."""
+    return {
+        "env_id": env_id,
+        "env_kwargs": env_kwargs,
+        "env_settings": settings,
+        "algo": algo,
+        "seed": seed,
+        "hyperparams": hp,
+    }
+
+
+def run_conflict(out: Path, identity: dict[str, Any]) -> str | None:
+    """Why ``out`` cannot take the run ``identity``, or None: its ``config.yml`` records another run
+    that made progress (:func:`has_progress`). A ``config.yml`` left by an attempt that failed before
+    its first checkpoint is replaced; an unreadable one with progress is refused, naming it."""
+    config_file = out / "config.yml"
+    if not config_file.exists() or not has_progress(out):
+        return None
+    try:
+        old = yaml.safe_load(config_file.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        return f"--out {out}: its config.yml cannot be read ({error}); choose another --out"
+    if not isinstance(old, dict):
+        return f"--out {out}: its config.yml is not a run's configuration; choose another --out"
+
+    def comparable(record: dict[str, Any]) -> dict[str, Any]:
+        kept = {k: record.get(k) for k in identity}
+        kept["hyperparams"] = {
+            k: v for k, v in (record.get("hyperparams") or {}).items() if k != "n_timesteps"
+        }
+        return kept
+
+    if comparable(old) != comparable(identity):
+        differing = [k for k in identity if comparable(old)[k] != comparable(identity)[k]]
+        return (
+            f"--out {out} holds a different run (config.yml differs in {', '.join(differing)}); choose "
+            "another --out"
+        )
+    return None
+
+
+def _json_number(value: float) -> float | None:
+    """``value``, or None (JSON null) when it is not finite (``-inf``: no validation yet)."""
+    return value if math.isfinite(value) else None
+
+
 def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Train one seed into ``payload["out"]`` (a task; see the module docstring). Returns ``result.json``."""
     import torch
@@ -139,26 +328,14 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     hp = dict(payload["hyperparams"])
     progress = bool(payload.get("progress", True))
     probe = make_env(env_id, {**env_kwargs, "progress": progress})  # settings now, start states below
-    identity = {
-        "env_id": env_id,
-        "env_kwargs": env_kwargs,
-        # resolved defaults: a changed env default is a different run
-        "env_settings": probe.unwrapped.settings(),  # type: ignore[attr-defined]
-        "algo": algo,
-        "seed": seed,
-        "hyperparams": hp,
-    }
-    comparable = {**identity, "hyperparams": {k: v for k, v in hp.items() if k != "n_timesteps"}}
+    settings = probe.unwrapped.settings()  # type: ignore[attr-defined]
+    identity = run_identity(env_id, env_kwargs, settings, algo, seed, hp)
     config_file = out / "config.yml"
-    if config_file.exists():
-        old = yaml.safe_load(config_file.read_text())
-        old_comparable = {k: old.get(k) for k in identity}
-        old_comparable["hyperparams"] = {
-            k: v for k, v in (old.get("hyperparams") or {}).items() if k != "n_timesteps"
-        }
-        if old_comparable != comparable:
-            probe.close()
-            raise SystemExit(f"{out} holds a different run (config.yml differs); choose another --out")
+    conflict = run_conflict(out, identity)
+    if conflict is not None:  # main() refuses this before any task starts
+        probe.close()
+        raise FileExistsError(conflict)
+    if config_file.exists() and has_progress(out):
         if (out / "result.json").exists():
             done = json.loads((out / "result.json").read_text())
             if int(done["timesteps"]) >= int(hp["n_timesteps"]):
@@ -267,14 +444,15 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         "timesteps": int(model.num_timesteps),
         "resumed_from": steps_done,
         "wall_seconds": wall,
-        "env_steps_per_second": remaining / wall if wall > 0 else float("nan"),
-        "best_validation_return": float(getattr(eval_cb, "best_mean_reward", float("nan"))),
-        "last_validation_return": float(getattr(eval_cb, "last_mean_reward", float("nan"))),
+        "env_steps_per_second": _json_number(remaining / wall if wall > 0 else math.nan),
+        # null until a validation has run (SB3 starts them at -inf): result.json stays valid JSON
+        "best_validation_return": _json_number(float(getattr(eval_cb, "best_mean_reward", math.nan))),
+        "last_validation_return": _json_number(float(getattr(eval_cb, "last_mean_reward", math.nan))),
         "library_key": library.key,
     }
     env.close()
     eval_env.close()
-    (out / "result.json").write_text(json.dumps(result, indent=1))
+    (out / "result.json").write_text(json.dumps(result, indent=1, allow_nan=False))
     return result
 
 
@@ -313,15 +491,28 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--env", required=True, help="environment id, e.g. dipenv/FieldMagnitude-v0")
     parser.add_argument("--algo", default="ppo", choices=ALGOS)
     seeds = parser.add_mutually_exclusive_group()
-    seeds.add_argument("--seed", type=int, default=None, help="one training seed; OUT is the run folder")
-    seeds.add_argument("--seeds", default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>")
+    seeds.add_argument(
+        "--seed", type=integer_at_least(0), default=None, help="one training seed >= 0; OUT is the run folder"
+    )
+    seeds.add_argument(
+        "--seeds", type=seed_list, default=None, help="several seeds (0-4, 0,2,5); runs go to OUT/seed<k>"
+    )
     parser.add_argument("--out", required=True, type=directory)
-    parser.add_argument("--timesteps", type=int, default=None, help="override n_timesteps")
-    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument(
+        "--timesteps", type=integer_at_least(1), default=None, help="override n_timesteps, >= 1"
+    )
+    parser.add_argument("--n-envs", type=integer_at_least(1), default=None, help="override n_envs, >= 1")
     parser.add_argument("--hyperparams", nargs="*", default=[], help="key=value overrides (YAML values)")
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
-    parser.add_argument("--workers", type=int, default=1, help="trainings at once on the local pool")
-    parser.add_argument("--scheduler", default=None, help="Dask scheduler address (instead of local workers)")
+    parser.add_argument(
+        "--workers", type=integer_at_least(1), default=1, help="trainings at once on the local pool, >= 1"
+    )
+    parser.add_argument(
+        "--scheduler",
+        type=scheduler_address,
+        default=None,
+        help="Dask scheduler address, tcp://HOST:PORT (instead of local workers)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     return parser
 
@@ -335,21 +526,26 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         overrides["n_envs"] = args.n_envs
     try:
         hp = load_hyperparams(args.algo, args.env, overrides)
+    except HyperparameterError as error:
+        usage_error(PROG, str(error))
     except ValueError as error:
         usage_error(PROG, f"--env/--algo: {error}")
     env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
+    output_directory(PROG, args.out)
+    probe = checked_env(PROG, args.env, env_kwargs, progress=False)  # bad values now, not after set-up
+    settings = probe.unwrapped.settings()
+    probe.close()
     command = " ".join([sys.executable, "-m", "agents.train", *(argv if argv is not None else sys.argv[1:])])
     if args.seeds is not None:
-        try:
-            seeds = parse_seeds(args.seeds)
-        except ValueError as error:
-            usage_error(PROG, f"--seeds: {error}")
+        seeds = args.seeds
         outs = [args.out / f"seed{s}" for s in seeds]
     else:
         seeds = [0 if args.seed is None else args.seed]
         outs = [args.out]
-    for out in outs:
-        problem = missing_normalisation(out, hp)
+    for seed, out in zip(seeds, outs, strict=True):
+        problem = missing_normalisation(out, hp) or run_conflict(
+            out, run_identity(args.env, env_kwargs, settings, args.algo, seed, hp)
+        )
         if problem is not None:
             usage_error(PROG, problem)
     payloads = [
@@ -369,7 +565,11 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     for r in results:
         print(
             f"{r['algo']} seed {r['seed']}: {r['timesteps']} steps, {r['wall_seconds']:.0f} s, "
-            f"best validation return {r['best_validation_return']:.2f}"
+            + (
+                f"best validation return {best:.2f}"
+                if (best := r["best_validation_return"]) is not None
+                else "no validation yet (eval_freq is beyond the run)"
+            )
         )
     return results
 

@@ -23,7 +23,7 @@ from typing import Any
 
 from gymnasium.envs.registration import register, registry
 
-from dipenv.envs.field_control import DEFAULT_EPISODE_STEPS, FieldMagnitudeEnv, FieldVectorEnv
+from dipenv.envs.field_control import FieldMagnitudeEnv, FieldVectorEnv
 from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningControlStressOnlyEnv
 
 __all__ = [
@@ -62,31 +62,25 @@ THICKENING_TINY_KWARGS: dict[str, Any] = {
 
 _THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
-    "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", DEFAULT_EPISODE_STEPS, {}),
-    "dipenv/FieldVector-v0": ("FieldVectorEnv", DEFAULT_EPISODE_STEPS, {}),
-    "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
-    "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS["episode_steps"], TINY_KWARGS),
-    "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", DEFAULT_EPISODE_STEPS, {}),
-    "dipenv/ThickeningControlStressOnly-v0": (
-        f"{_THICKENING}:ThickeningControlStressOnlyEnv",
-        DEFAULT_EPISODE_STEPS,
-        {},
-    ),
-    "dipenv/ThickeningControlTiny-v0": (
-        f"{_THICKENING}:ThickeningControlEnv",
-        THICKENING_TINY_KWARGS["episode_steps"],
-        THICKENING_TINY_KWARGS,
-    ),
+    "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", {}),
+    "dipenv/FieldVector-v0": ("FieldVectorEnv", {}),
+    "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS),
+    "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS),
+    "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", {}),
+    "dipenv/ThickeningControlStressOnly-v0": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", {}),
+    "dipenv/ThickeningControlTiny-v0": (f"{_THICKENING}:ThickeningControlEnv", THICKENING_TINY_KWARGS),
 }
+"""Entry point and keyword arguments of each id. No ``max_episode_steps``: each env truncates itself after
+its own ``episode_steps`` (``gym.make(id, episode_steps=20)`` gives 20-action episodes, as ``settings()``
+says; a registered time limit would cut them at the registered length instead)."""
 
 ENV_IDS = tuple(_SPECS)
 """Every registered id."""
 
-for _env_id, (_cls, _steps, _kwargs) in _SPECS.items():
+for _env_id, (_cls, _kwargs) in _SPECS.items():
     if _env_id not in registry:
         register(
             id=_env_id,
             entry_point=_cls if ":" in _cls else f"dipenv.envs.field_control:{_cls}",
-            max_episode_steps=_steps,
             kwargs=dict(_kwargs),
         )

@@ -162,6 +162,30 @@ class StartState:
         return (w[:, None] * self.tail_rheology[mask]).sum(axis=0) / w.sum()
 
 
+MAX_SPLIT_SIZE = 100_000
+"""The most start states one split may hold."""
+
+
+def check_split_sizes(split_sizes: Any) -> None:
+    """Raise ``ValueError`` unless ``split_sizes`` maps each of :data:`SPLITS` (and nothing else) to an
+    integer in [1, :data:`MAX_SPLIT_SIZE`]. The one check, made by the envs at construction and by
+    :class:`StateLibrary`."""
+    if not isinstance(split_sizes, dict):
+        raise ValueError(f"split_sizes must be a dict of {', '.join(SPLITS)} to sizes, got {split_sizes!r}")
+    unknown = [key for key in split_sizes if key not in SPLITS]
+    if unknown:
+        raise ValueError(
+            f"split_sizes has unknown split {unknown[0]!r} (the splits are {', '.join(SPLITS)}), got "
+            f"{split_sizes!r}"
+        )
+    for split in SPLITS:
+        size = split_sizes.get(split, 0)
+        if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= MAX_SPLIT_SIZE:
+            raise ValueError(
+                f"split_sizes[{split!r}] must be an integer in [1, {MAX_SPLIT_SIZE}], got {size!r}"
+            )
+
+
 @dataclass(frozen=True)
 class StateLibrary:
     """Pre-sheared start states for one simulation setup.
@@ -191,10 +215,7 @@ class StateLibrary:
                 "need 0 < tail_strain < preshear_strain (finite), got "
                 f"{self.tail_strain}, {self.preshear_strain}"
             )
-        for split in SPLITS:
-            size = self.split_sizes.get(split, 0)
-            if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= 100_000:
-                raise ValueError(f"split_sizes[{split!r}] must be an integer in [1, 100000], got {size!r}")
+        check_split_sizes(self.split_sizes)
 
     # -- identity ----------------------------------------------------------------------------------------
     def parameters(self) -> dict[str, Any]:

@@ -26,6 +26,7 @@ import argparse
 import itertools
 import json
 import math
+import os
 import re
 import sys
 from collections.abc import Callable, Sequence
@@ -44,7 +45,7 @@ from sim.config import (
     SimulationConfig,
 )
 from sim.geometry.configurations import MAX_VOLUME_FRACTION, MIN_VOLUME_FRACTION
-from sim.tasks import parse_seeds
+from sim.tasks import MAX_SEEDS, parse_seeds
 
 FLAGS = {
     "n_particles": "--n-particles",
@@ -176,14 +177,16 @@ def _seed_list(text: str) -> list[int]:
     text = text.strip()
     if text.isdigit():
         count = int(text)
-        if count < 1:
+        if not 1 <= count <= MAX_SEEDS:
             raise argparse.ArgumentTypeError(
-                f"a count of seeds must be >= 1 (3 = seeds 1, 2, 3), got {text!r}"
+                f"a count of seeds must be in [1, {MAX_SEEDS}] (3 = seeds 1, 2, 3), got {text!r}"
             )
         return list(range(1, count + 1))
     try:
         return parse_seeds(text)
-    except ValueError:
+    except ValueError as exc:
+        if str(exc).startswith("at most"):
+            raise argparse.ArgumentTypeError(str(exc)) from None
         raise argparse.ArgumentTypeError(
             "must be a count (3 = seeds 1, 2, 3), a list (1,4) or ranges (0-4, 0,2,5-7) of non-negative "
             f"integers, got {text!r}"
@@ -206,6 +209,30 @@ def _directory(text: str) -> str:
     if not text.strip():
         raise argparse.ArgumentTypeError(f"must name a directory, got {text!r}")
     return text
+
+
+def check_output_directory(parser: argparse.ArgumentParser, flag: str, path: str | Path) -> Path:
+    """Exit 2 naming ``flag`` unless ``path`` is a folder, or can be created as one, and can be written.
+
+    Nothing is created: the nearest existing folder above ``path`` must be a writable folder. The one
+    check of the output folders of ``sweep``, ``figures`` and ``flow-curve``."""
+    out = Path(path)
+    if not str(path).strip():
+        parser.error(f"{flag} must name a directory, got {str(path)!r}")
+    if out.exists() and not out.is_dir():
+        parser.error(f"{flag} {out} exists and is not a directory")
+    existing = next((p for p in (out, *out.absolute().parents) if p.exists()), None)
+    if existing is None or not existing.is_dir():
+        parser.error(f"{flag} {out} cannot be created: {existing} is not a directory")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        parser.error(f"{flag} {out} cannot be written: {existing} is read-only")
+    return out
+
+
+def output_error(parser: argparse.ArgumentParser, flag: str, exc: OSError) -> NoReturn:
+    """Exit 2 for an ``OSError`` raised while writing into ``flag``'s folder, naming the file."""
+    where = exc.filename if exc.filename is not None else "it"
+    parser.error(f"{flag}: cannot write {where}: {exc.strerror or exc}")
 
 
 def _scheduler(text: str) -> str:
@@ -574,9 +601,11 @@ def _spec_arguments(args: argparse.Namespace) -> list[str]:
     else:
         flag, where = "--spec", args.spec
         try:
-            text = Path(args.spec).read_text()
+            text = Path(args.spec).read_text(encoding="utf-8")
         except OSError as exc:
             parser.error(f"--spec {args.spec}: cannot be read: {exc.strerror or exc}")
+        except UnicodeDecodeError as exc:
+            parser.error(f"--spec {args.spec}: not a YAML text file (not UTF-8 at byte {exc.start})")
     import yaml
 
     try:
@@ -761,9 +790,7 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
     if args.out is None:
         parser.error("the following arguments are required: --out")
     configs = _sweep_configs(args)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        parser.error(f"--out {out} exists and is not a directory")
+    out = check_output_directory(parser, "--out", args.out)
 
     from sim.io import json_ready, read_json
     from sim.run import COMPILE_NOTICE, compiled_kernels_cached
@@ -813,9 +840,7 @@ def _flow_curve(args: argparse.Namespace) -> int:
     from sim.tasks import TaskFailure, run_tasks
 
     parser: argparse.ArgumentParser = args.parser
-    out = Path(args.out)
-    if not args.out or (out.exists() and not out.is_dir()):
-        parser.error(f"--out must name a directory (created if missing), got {args.out!r}")
+    out = check_output_directory(parser, "--out", args.out)
     specs = []
     for mason in args.mason:
         try:
@@ -879,11 +904,17 @@ def _figures(args: argparse.Namespace) -> int:
     """``python -m sim figures``."""
     from sim.sweep_figures import make_figures
 
+    parser: argparse.ArgumentParser = args.parser
+    out = Path(args.directory) / "figures" if args.out is None else Path(args.out)
+    flag = "--out" if args.out is not None else "DIR"
+    if args.out is not None or Path(args.directory).is_dir():  # else make_figures names DIR
+        check_output_directory(parser, flag, out)
     try:
-        written = make_figures(args.directory, args.out, log=None if args.quiet else print)
+        written = make_figures(args.directory, out, log=None if args.quiet else print)
     except (FileNotFoundError, ValueError) as exc:
-        parser: argparse.ArgumentParser = args.parser
         parser.error(str(exc))
+    except OSError as exc:
+        output_error(parser, flag, exc)
     if not args.quiet:
         print(f"{len(written)} files in {Path(written[0]).parent if written else args.out}")
     return 0

@@ -20,11 +20,12 @@ from typing import Any
 import numpy as np
 
 from sim import io
-from sim.config import SimulationConfig
+from sim.config import MAX_STEPS, SimulationConfig
 from sim.figures import plot_rheology
 from sim.run_observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
 from sim.simulation import Simulation, StepRecords
 from sim.state import SimulationState
+from sim.step_parameters import field_strength
 from sim.stepper import stop_time
 
 COMPILE_NOTICE = "compiling kernels (first run only, about a minute)..."
@@ -63,6 +64,39 @@ def check_run_length(config: SimulationConfig, names: Mapping[str, str] | None =
             f"{earliest_last_sample:g} (one per step of at most {_name('time_step', names)}="
             f"{config.time_step:g}, taken at its start); lengthen {strain} or shorten {transient}"
         )
+    _check_field_steps(config, names)
+
+
+def field_step_estimate(config: SimulationConfig) -> float:
+    """Steps a run of ``config`` takes at the least with its field on (0 without a field).
+
+    The adaptive step keeps the non-affine displacement per step below ``max_displacement`` times the
+    mean spacing; the dipolophoretic velocity has the scale ``U0 = 1/mason_number``, so a step is at most
+    about ``max_displacement * spacing / U0`` long once the field moves the spheres, and the run's
+    ``duration`` needs ``duration * U0 / (max_displacement * spacing)`` of them (more where pairs move
+    faster than ``U0``): the field's share of the planned work, beside ``duration / time_step``.
+    """
+    u0 = field_strength(config.mason_number)
+    if u0 == 0.0:
+        return 0.0
+    return config.duration * u0 / (config.max_displacement * config.mean_spacing)
+
+
+def _check_field_steps(config: SimulationConfig, names: Mapping[str, str] | None) -> None:
+    """Refuse a field so strong that the adaptive step would need more than ``MAX_STEPS`` steps
+    (``--mason 1e-9``: steps of ~1e-11, an effective hang), naming the smallest Mason number allowed."""
+    steps = field_step_estimate(config)
+    if steps <= MAX_STEPS:
+        return
+    mason, strain = _name("mason_number", names), _name("strain", names)
+    smallest = config.mason_number * steps / MAX_STEPS
+    raise ValueError(
+        f"{mason}={config.mason_number:g} is too strong a field for {strain}={config.strain:g}: its "
+        f"velocity scale U0 = 1/{mason} = {1.0 / config.mason_number:.3g} and the displacement bound "
+        f"{_name('max_displacement', names)}={config.max_displacement:g} of the mean spacing make steps of "
+        f"about {config.duration / steps:.3g}, some {steps:.3g} steps (more than {MAX_STEPS:.0e}); "
+        f"{mason} must be in [{smallest:.3g}, inf] for this run (or shorten {strain})"
+    )
 
 
 def _check_output_directory(out: Path, names: Mapping[str, str] | None) -> None:

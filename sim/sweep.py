@@ -109,12 +109,22 @@ def plan_point(out: Path, config: SimulationConfig, digest: str | None = None) -
     digest = digest or _source_digest()
     saved = _saved_params(out)
     if saved is not None and saved[1] == digest and _same_but_strain(saved[0], config):
-        if saved[0] == config and (out / "result.json").exists():
+        if saved[0] == config and saved_result(out) is not None:
             return "finished"
         return "resumable" if (out / "checkpoint.npz").exists() else "new"
     if out.is_dir() and any(out.iterdir()):
         return "stale"
     return "new"
+
+
+def saved_result(out: Path) -> dict[str, Any] | None:
+    """The contents of ``out/result.json``, or None when it is missing or unreadable (a truncated or
+    binary file, or not a JSON object): such a point is redone, not reused."""
+    try:
+        result = read_json(out / "result.json")
+    except (OSError, ValueError):  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+        return None
+    return result if isinstance(result, dict) else None
 
 
 def _remove(out: Path, names: Sequence[str]) -> None:
@@ -210,6 +220,14 @@ def _write_atomically(path: Path, data: dict[str, Any]) -> None:
     os.replace(tmp, path)
 
 
+NAME_PRECISION = {
+    "volume_fraction": "volume_fraction has 3 decimals there",
+    "mason_number": "mason_number has 6 significant digits there",
+    "field_direction": "field_direction has 3 significant digits per component there",
+}
+"""How :func:`run_name` rounds the parameters it writes with fewer digits than they hold."""
+
+
 def check_unique_names(configs: Sequence[SimulationConfig]) -> None:
     """Raise ``ValueError`` naming the differing parameters if two configurations share a folder name."""
     seen: dict[str, SimulationConfig] = {}
@@ -221,12 +239,14 @@ def check_unique_names(configs: Sequence[SimulationConfig]) -> None:
             continue
         first, second = other.to_dict(), config.to_dict()
         differing = [f for f in first if first[f] != second[f]]
+        rounded = [NAME_PRECISION[f] for f in differing if f in NAME_PRECISION]
         what = (
             "the same point is listed twice"
             if not differing
             else "they differ in "
             + ", ".join(f"{f} ({first[f]!r} and {second[f]!r})" for f in differing)
-            + ", which the folder name does not tell apart (volume_fraction has 3 decimals there)"
+            + ", which the folder name does not tell apart"
+            + (f" ({'; '.join(rounded)})" if rounded else "")
         )
         raise ValueError(f"two points of the sweep would share the folder {name}: {what}")
 
@@ -274,7 +294,7 @@ def run_points(
         point = SweepPoint(name=name, config=config, plan=plan_point(out / name, config, digest))
         if point.plan == "finished":
             point.status = "reused"
-            point.result = read_json(out / name / "result.json")
+            point.result = saved_result(out / name)
         points.append(point)
     manifest: dict[str, Any] = {
         "command": command,

@@ -247,11 +247,58 @@ def _series_label(key: tuple[Any, ...], keys: Sequence[tuple[Any, ...]]) -> str:
     return "_".join(parts)
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def read_result(path: Path) -> dict[str, Any]:
+    """A point's ``result.json``, checked for what the figures read; ``ValueError`` naming the file when
+    it cannot be read, is not JSON (truncated, binary) or lacks the fields (another file's shape).
+
+    Required: ``volume_fraction`` (a number), ``mason_number`` (a number > 0 or ``inf``); optional but
+    typed: ``seed`` (an integer), the :data:`SERIES_FIELDS` (``field_direction`` three numbers, the others
+    a number or a string). The quantities of :data:`QUANTITIES` may be absent or non-numeric (NaN then).
+    """
+    redo = "remove that point's folder, or rerun the sweep to redo it"
+    try:
+        result = read_json(path)
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot be read: {exc.strerror or exc}") from None
+    except ValueError as exc:  # JSONDecodeError, UnicodeDecodeError
+        raise ValueError(f"{path}: not a valid result.json ({type(exc).__name__}: {exc}); {redo}") from None
+    if not isinstance(result, dict):
+        kind = type(result).__name__
+        raise ValueError(f"{path}: not a run's result (a JSON object expected, got {kind}); {redo}")
+    problems = []
+    phi: Any = result.get("volume_fraction")
+    mason: Any = result.get("mason_number")
+    if not (_is_number(phi) and 0.0 < phi < 1.0):
+        problems.append(f"volume_fraction must be a number in (0, 1), got {phi!r}")
+    if not (_is_number(mason) and mason > 0.0):
+        problems.append(f"mason_number must be a number > 0 or 'inf', got {mason!r}")
+    seed = result.get("seed", -1)
+    if isinstance(seed, bool) or not isinstance(seed, int):
+        problems.append(f"seed must be an integer, got {seed!r}")
+    for name in SERIES_FIELDS:
+        value = result.get(name)
+        if name == "field_direction":
+            if value is not None and not (
+                isinstance(value, list) and len(value) == 3 and all(_is_number(c) for c in value)
+            ):
+                problems.append(f"field_direction must be three numbers, got {value!r}")
+        elif value is not None and not (_is_number(value) or isinstance(value, str)):
+            problems.append(f"{name} must be a number or a word, got {value!r}")
+    if problems:
+        raise ValueError(f"{path}: not a run's result: {'; '.join(problems)}; {redo}")
+    return result
+
+
 def load_sweep(directory: str | Path) -> list[Series]:
     """Every run below ``directory`` with a ``result.json``, grouped into series and seed groups.
 
     Raises:
-        FileNotFoundError: ``directory`` is not a folder; ValueError: it holds no ``result.json``.
+        FileNotFoundError: ``directory`` is not a folder; ValueError: it holds no ``result.json``, or one
+        that is corrupt or of another shape (:func:`read_result`).
     """
     root = Path(directory)
     if not root.is_dir():
@@ -259,7 +306,7 @@ def load_sweep(directory: str | Path) -> list[Series]:
     files = sorted(root.glob("*/result.json"))
     if not files:
         raise ValueError(f"DIR {root}: no <point>/result.json in it (has the sweep finished a point yet?)")
-    loaded = [(path, read_json(path)) for path in files]
+    loaded = [(path, read_result(path)) for path in files]
     finite_keys = {_series_key(r) for _, r in loaded if math.isfinite(float(r["mason_number"]))}
     by_key: dict[tuple[Any, ...], Series] = {}
     for path, result in loaded:

@@ -55,28 +55,35 @@ class TaskFailure:
         return asdict(self)
 
 
-def parse_seeds(text: str) -> list[int]:
+MAX_SEEDS = 10_000
+"""The most seeds one command takes (``--seeds``): each is a run or a training, so more is a typo."""
+
+
+def parse_seeds(text: str, max_count: int = MAX_SEEDS) -> list[int]:
     """``"0-4"`` -> [0, 1, 2, 3, 4]; ``"0,3,7-8"`` -> [0, 3, 7, 8] (sorted, unique).
 
+    The count is checked before any list is built, so ``0-99999999999`` is refused at once.
+
     Raises:
-        ValueError: on anything but non-negative integers and ranges ``a-b`` with ``a <= b``.
+        ValueError: on anything but non-negative integers and ranges ``a-b`` with ``a <= b``, or on more
+        than ``max_count`` seeds.
     """
-    seeds: set[int] = set()
+    ranges: list[tuple[int, int]] = []
     for part in text.split(","):
         part = part.strip()
         try:
-            if "-" in part:
-                low, high = (int(x) for x in part.split("-", 1))
-                if low < 0 or high < low:
-                    raise ValueError
-                seeds.update(range(low, high + 1))
-            else:
-                value = int(part)
-                if value < 0:
-                    raise ValueError
-                seeds.add(value)
+            low, high = (int(x) for x in part.split("-", 1)) if "-" in part else (int(part), int(part))
+            if low < 0 or high < low:
+                raise ValueError
         except ValueError:
             raise ValueError(f"seeds must look like 0-4 or 0,2,5-7 (non-negative), got {text!r}") from None
+        ranges.append((low, high))
+    count = sum(high - low + 1 for low, high in ranges)  # an upper bound (before duplicates are merged)
+    if count > max_count:
+        raise ValueError(f"at most {max_count} seeds are allowed, got {count} in {text!r}")
+    seeds: set[int] = set()
+    for low, high in ranges:
+        seeds.update(range(low, high + 1))
     return sorted(seeds)
 
 

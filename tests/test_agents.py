@@ -68,7 +68,7 @@ def test_hyperparameters_for_every_id() -> None:
 @pytest.mark.parametrize(
     ("module", "arguments", "named"),
     [
-        (train, ["--seeds", "a-b"], "--seeds"),
+        (train, ["--seeds", "a-b"], "argument --seeds: seeds must look like 0-4"),
         (train, ["--hyperparams", "gamma"], "--hyperparams"),
         (train, ["--env-kwargs", "{bad"], "--env-kwargs"),
         (train, ["--env-kwargs", "[1]"], "--env-kwargs"),

@@ -89,3 +89,69 @@ def test_train_refuses_to_resume_without_the_checkpoints_normalisation(
     )
     assert "ckpt_vecnormalize_64_steps.pkl, which is missing" in err and f"--out {copy}" in err
     assert sorted(p.name for p in copy.rglob("*")) == before
+
+
+def test_train_without_a_validation_and_after_a_failed_attempt(trained, tmp_path: Path) -> None:
+    """A failed attempt (SB3 refuses a policy argument after config.yml was written) no longer blocks the
+    corrected command; a run too short for a validation writes null, not -Infinity (invalid JSON)."""
+    out = tmp_path / "short"
+    first = [*COMMON, "--timesteps", "32", "--out", str(out), "--hyperparams", *SHORT]
+    with pytest.raises(TypeError, match="bogus_argument"):
+        train.main([*first, "policy_kwargs={bogus_argument: 1}"])
+    assert (out / "config.yml").exists() and not (out / "result.json").exists()
+    train.main([*first, "eval_freq=1000"])  # was: "holds a different run (config.yml differs)"
+    text = (out / "result.json").read_text()
+
+    def strict(constant: str) -> None:
+        raise AssertionError(f"result.json holds {constant}, which is not JSON")
+
+    result = json.loads(text, parse_constant=strict)
+    assert result["best_validation_return"] is None and result["last_validation_return"] is None
+    assert result["timesteps"] >= 32
+
+
+EVALUATE_BAD = [
+    ("model.zip", b"PK\x03\x04 truncated", "cannot be loaded as a ppo model"),
+    ("vecnormalize.pkl", b"\x80\x04 truncated", "vecnormalize.pkl cannot be loaded"),
+    ("config.yml", b"\x89PNG\x00\xff", "config.yml cannot be read (UnicodeDecodeError"),
+    ("config.yml", b"just a string\n", "config.yml is not an agents.train config.yml"),
+]
+
+
+@pytest.mark.parametrize(
+    ("name", "content", "needle"), EVALUATE_BAD, ids=[f"{n}-{c!r}" for n, c, _ in EVALUATE_BAD]
+)
+def test_evaluate_names_a_corrupt_run_file(
+    trained, name: str, content: bytes, needle: str, tmp_path: Path, capsys
+) -> None:
+    """Were tracebacks (zipfile, pickle, yaml errors), some from a worker after the episodes began."""
+    baseline, run = trained
+    copy = tmp_path / "ppo"
+    shutil.copytree(run, copy)
+    (copy / name).write_bytes(content)
+    out = tmp_path / "evaluation"
+    err = _refused(capsys, evaluate, [str(copy), "--baseline", str(baseline), "--out", str(out)])
+    assert f"{copy / name}" in err and needle in err, err
+    assert not out.exists()
+
+
+def test_evaluate_refuses_bad_arguments(trained, tmp_path: Path, capsys) -> None:
+    baseline, run = trained
+    out = tmp_path / "evaluation"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    afile = tmp_path / "notes.txt"
+    afile.write_text("keep\n")
+    cases = [
+        (["--baseline", str(tmp_path / "missing")], f"--baseline {tmp_path / 'missing'} is not a folder"),
+        (["--baseline", str(empty)], f"--baseline {empty}: {empty / 'pareto.json'} cannot be read"),
+        (["--baseline", str(baseline), "--split", "bogus"], "argument --split: invalid choice: 'bogus'"),
+        (["--baseline", str(baseline), "--workers", "0"], "argument --workers: must be an integer >= 1"),
+        (["--baseline", str(baseline), "--episodes", "0"], "argument --episodes: must be an integer >= 1"),
+    ]
+    for arguments, needle in cases:
+        err = _refused(capsys, evaluate, [str(run), "--out", str(out), *arguments])
+        assert needle in err, err
+    assert not out.exists()
+    err = _refused(capsys, evaluate, [str(run), "--baseline", str(baseline), "--out", str(afile)])
+    assert f"--out {afile} exists and is not a directory" in err

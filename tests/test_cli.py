@@ -81,6 +81,10 @@ BAD_INPUTS = [
     (["--dt", "0.5"], "--dt must be in (0.0, 0.05], got 0.5"),
     (["--dt", "0"], "--dt must be in (0.0, 0.05], got 0.0"),
     (["--dt", "1e-12"], "--dt=1e-12 is too small for --strain=30.0"),  # was a 3e13-step hang
+    (  # was an effective hang: the adaptive step went to ~1e-11
+        ["--mason", "1e-9"],
+        "--mason=1e-09 is too strong a field for --strain=30: its velocity scale U0 = 1/--mason = 1e+09",
+    ),
     (["--transient", "5", "--strain", "0.05"], "--transient must be below --strain (0.05), got 5.0"),
     (["--transient", "-1"], "--transient must be in [0.0, 30.0), got -1.0"),
     (["--seed", "-1"], "--seed must be a non-negative integer, got -1"),
@@ -103,6 +107,12 @@ def test_bad_input_exits_2_naming_the_flag(args: list[str], needle: str, tmp_pat
     status, _, err = run_cli(["--out", str(out), *args], capsys)
     assert_refused(status, err, needle)
     assert not out.exists()  # refused before anything is written
+
+
+def test_too_strong_a_field_names_the_range(tmp_path: Path, capsys) -> None:
+    status, _, err = run_cli(["--out", str(tmp_path / "o"), "--mason", "1e-9", "--strain", "1"], capsys)
+    assert_refused(status, err, "--mason=1e-09 is too strong a field for --strain=1")
+    assert "--mason must be in [1.14e-06, inf] for this run (or shorten --strain)" in err, err
 
 
 def test_no_samples_message_names_both_flags(tmp_path: Path, capsys) -> None:

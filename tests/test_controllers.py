@@ -146,6 +146,10 @@ def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) 
         (["--episodes", "9"], "--split"),
         (["--workers", "0"], "--workers"),
         (["--env", "dipenv/FieldMagnitudeTiny-v0"], "thickening-control"),
+        (["--env", "CartPole-v1"], "--env must be one of dipenv/"),
+        (["--env-kwargs", '{"bogus": 1}'], '--env-kwargs {"bogus": 1}: '),
+        (["--scheduler", "nowhere"], "argument --scheduler: must be a Dask scheduler address"),
+        (["--workers", "x"], "argument --workers: must be an integer >= 1, got 'x'"),
     ],
 )
 def test_bad_arguments_exit_2(

@@ -59,7 +59,43 @@ def test_every_id_is_registered() -> None:
         "dipenv/ThickeningControlTiny-v0",
     }
     for env_id in dipenv.ENV_IDS:
-        assert gym.spec(env_id).max_episode_steps is not None
+        assert gym.spec(env_id).max_episode_steps is None  # the envs truncate at their own episode_steps
+
+
+def _wrapper_names(env: gym.Env) -> list[str]:
+    names = []
+    while isinstance(env, gym.Wrapper):
+        names.append(type(env).__name__)
+        env = env.env
+    return names
+
+
+@pytest.mark.parametrize("env_id", dipenv.ENV_IDS)
+def test_episode_steps_given_to_make_is_the_episode_length(env_id: str) -> None:
+    """``gym.make(id, episode_steps=20)`` used to be cut at the registered limit (TimeLimit) while
+    ``settings()`` said 20; now no time limit is registered and the env truncates itself."""
+    env = make(env_id, episode_steps=20)
+    assert "TimeLimit" not in _wrapper_names(env), _wrapper_names(env)
+    assert env.unwrapped.settings()["episode_steps"] == 20
+    assert env.spec is not None and env.spec.max_episode_steps is None
+
+
+@pytest.mark.parametrize(
+    ("split_sizes", "needle"),
+    [
+        ({"train": 0, "validation": 1, "test": 1}, "split_sizes['train'] must be an integer in [1, 100000]"),
+        ({"train": 1, "validation": 1, "test": 1, "bogus": 2}, "split_sizes has unknown split 'bogus'"),
+        ({"train": 1, "validation": 1}, "split_sizes['test'] must be an integer in [1, 100000], got 0"),
+        ({"train": 1.5, "validation": 1, "test": 1}, "split_sizes['train'] must be an integer"),
+        ([1, 1, 1], "split_sizes must be a dict of train, validation, test to sizes"),
+    ],
+)
+def test_bad_split_sizes_are_refused_at_make(split_sizes: object, needle: str) -> None:
+    """They used to be accepted at ``make`` and fail only at ``reset``."""
+    for env_id in ("dipenv/FieldMagnitudeTiny-v0", "dipenv/ThickeningControlTiny-v0"):
+        with pytest.raises(ValueError) as caught:
+            make(env_id, split_sizes=split_sizes)
+        assert needle in str(caught.value), caught.value
 
 
 @pytest.mark.parametrize("env_id", dipenv.ENV_IDS)

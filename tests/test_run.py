@@ -49,6 +49,18 @@ def test_run_length_accepts_one_sample_after_the_transient() -> None:
         check_run_length(dataclasses.replace(SHORT, transient_strain=0.0185), flags)
 
 
+def test_run_length_is_bounded_by_the_field_as_well(tmp_path: Path) -> None:
+    """A strong field makes the adaptive step tiny: ``--mason 1e-9`` was an effective hang."""
+    strong = dataclasses.replace(SHORT, mason_number=1e-9, strain=30.0, near_field="none")
+    assert sim.run.field_step_estimate(strong) > 1e12
+    with pytest.raises(ValueError, match=r"mason_number=1e-09 is too strong a field for strain=30"):
+        run_simulation(strong, tmp_path / "o", progress=False)
+    assert not (tmp_path / "o").exists()
+    # the paper's range
+    check_run_length(dataclasses.replace(SHORT, mason_number=0.01, strain=30.0, near_field="none"))
+    assert sim.run.field_step_estimate(SHORT) == 0.0  # no field
+
+
 def test_refused_runs_write_nothing(tmp_path: Path) -> None:
     existing = tmp_path / "file"
     existing.write_text("x")

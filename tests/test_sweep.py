@@ -204,6 +204,30 @@ def test_plans_of_folders(tmp_path) -> None:
     assert plan_point(folder, config) == "stale"
 
 
+def test_a_corrupt_result_is_redone_not_fatal(tmp_path) -> None:
+    """A rerun whose points hold a truncated or binary ``result.json`` redoes those points (it used to
+    abort the whole sweep with a JSONDecodeError or UnicodeDecodeError)."""
+    configs = [dataclasses.replace(CONFIGS[0], seed=seed) for seed in (1, 2, 3)]
+    out = tmp_path / "sweep"
+    run_points(configs, out, workers=1)
+    truncated, binary = _result_file(out, configs[0]), _result_file(out, configs[1])
+    truncated.write_text(truncated.read_text()[:40])
+    binary.write_bytes(b"\x89PNG\x00\xff\xfe")
+    assert plan_point(truncated.parent, configs[0]) == "resumable"
+    points = run_points(configs, out, workers=1)
+    assert [p.status for p in points] == ["resumed", "resumed", "reused"]
+    for config in configs[:2]:
+        assert json.loads(_result_file(out, config).read_text())["seed"] == config.seed
+    _result_file(out, configs[2]).write_text("[1, 2]")  # valid JSON, not a result
+    assert plan_point(out / run_name(configs[2]), configs[2]) == "resumable"
+
+
+def test_points_differing_in_mason_number_name_it_not_the_volume_fraction(tmp_path) -> None:
+    twins = [dataclasses.replace(CONFIGS[0], mason_number=mn, near_field="none") for mn in (1.0, 1.0000001)]
+    with pytest.raises(ValueError, match=r"tell apart \(mason_number has 6 significant digits there\)$"):
+        run_points(twins, tmp_path / "sweep", workers=1)
+
+
 def test_points_sharing_a_folder_are_refused(tmp_path) -> None:
     twins = [dataclasses.replace(CONFIGS[0], volume_fraction=phi) for phi in (0.3001, 0.3004)]
     with pytest.raises(

@@ -108,7 +108,20 @@ BAD_INPUTS = [
     ),
     (["--n-particles", "40,2.5"], "argument --n-particles: must be a comma list of integers, got '2.5'"),
     (["--n-particles", "40,5", "--phi", "0.5"], "--n-particles=5 is too small for --phi=0.5"),
-    (["--seeds", "0"], "argument --seeds: a count of seeds must be >= 1 (3 = seeds 1, 2, 3), got '0'"),
+    (["--seeds", "0"], "argument --seeds: a count of seeds must be in [1, 10000] (3 = seeds 1, 2, 3)"),
+    (  # was an OverflowError
+        ["--seeds", "99999999999999999999"],
+        "argument --seeds: a count of seeds must be in [1, 10000] (3 = seeds 1, 2, 3), got '9999999999999",
+    ),
+    (  # was killed for memory
+        ["--seeds", "0-99999999999"],
+        "argument --seeds: at most 10000 seeds are allowed, got 100000000000 in '0-99999999999'",
+    ),
+    (  # blamed --phi
+        ["--mason", "1,1.0000001", "--near-field", "none"],
+        "two points of the sweep would share the folder phi0.400_N40_Mn1_seed1: they differ in --mason (1.0 "
+        "and 1.0000001), which the folder name does not tell apart (--mason has 6 significant digits there)",
+    ),
     (["--seeds", "4-2"], "argument --seeds: must be a count (3 = seeds 1, 2, 3), a list (1,4) or ranges"),
     (["--seeds", "x"], "argument --seeds: must be a count"),
     (["--workers", "0"], "argument --workers: must be an integer >= 1, got '0'"),
@@ -155,6 +168,14 @@ def test_bad_spec_exits_2(text: str, needle: str, tmp_path: Path, capsys) -> Non
     spec.write_text(text)
     status, _, err = sweep_cli(["--spec", str(spec), "--out", str(tmp_path / "o"), *TINY], capsys)
     assert status == 2 and PREFIX in err and needle in err, err
+
+
+def test_binary_spec_exits_2_naming_it(tmp_path: Path, capsys) -> None:
+    spec = tmp_path / "sweep.yml"
+    spec.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff")  # was a UnicodeDecodeError
+    status, _, err = sweep_cli(["--spec", str(spec), "--out", str(tmp_path / "o"), *TINY], capsys)
+    assert status == 2 and PREFIX + f"--spec {spec}: not a YAML text file (not UTF-8 at byte 0)" in err, err
+    assert not (tmp_path / "o").exists()
 
 
 def test_missing_out_and_out_a_file(tmp_path: Path, capsys) -> None:

@@ -228,3 +228,66 @@ def test_cli_refuses_a_folder_without_results(tmp_path: Path, capsys) -> None:
         err = capsys.readouterr().err
         assert err.startswith("usage: python -m sim figures") and "python -m sim figures: error: DIR" in err
         assert needle in err
+
+
+@pytest.mark.parametrize(
+    ("content", "needle"),
+    [
+        (b'{"relative_viscosity": 2.1, "volume', "not a valid result.json (JSONDecodeError"),  # truncated
+        (b"\x89PNG\x00\xff\xfe", "not a valid result.json (UnicodeDecodeError"),  # binary
+        (b"[1, 2, 3]", "not a run's result (a JSON object expected, got list)"),  # was a TypeError
+        (b'{"relative_viscosity": 2.1}', "volume_fraction must be a number in (0, 1), got None"),  # KeyError
+        (
+            b'{"volume_fraction": 0.3, "mason_number": "x", "field_direction": 3}',
+            "mason_number must be a number > 0 or 'inf', got 'x'; field_direction must be three numbers",
+        ),
+        (b'{"volume_fraction": 0.3, "mason_number": 1, "near_field": {"a": 1}}', "near_field must be"),
+    ],
+)
+def test_cli_names_a_corrupt_or_foreign_result(content: bytes, needle: str, tmp_path: Path, capsys) -> None:
+    root = tmp_path / "sweep"
+    write_sweep(root)
+    bad = root / "phi0.300_N40_Mn1_seed1" / "result.json"
+    bad.write_bytes(content)
+    with pytest.raises(SystemExit) as exc:
+        main(["figures", str(root), "--out", str(tmp_path / "figs")])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"python -m sim figures: error: {bad}: " in err and needle in err, err
+    assert "rerun the sweep to redo it" in err
+    assert not (tmp_path / "figs").exists()  # refused before anything is written
+
+
+def test_cli_refuses_an_out_that_is_a_file_or_below_one(tmp_path: Path, capsys) -> None:
+    """Both were tracebacks (FileExistsError, NotADirectoryError)."""
+    root = tmp_path / "sweep"
+    write_sweep(root)
+    afile = tmp_path / "notes.txt"
+    afile.write_text("keep\n")
+    for out, needle in (
+        (afile, f"--out {afile} exists and is not a directory"),
+        (afile / "sub", f"--out {afile / 'sub'} cannot be created: {afile} is not a directory"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            main(["figures", str(root), "--out", str(out)])
+        assert exc.value.code == 2
+        assert f"python -m sim figures: error: {needle}" in capsys.readouterr().err
+    assert afile.read_text() == "keep\n"
+
+
+def test_cli_names_a_file_it_cannot_write(tmp_path: Path, capsys, monkeypatch) -> None:
+    """A write that fails after the checks (a read-only folder, a full disk) exits 2 naming the file."""
+    import sim.sweep_figures
+
+    root = tmp_path / "sweep"
+    write_sweep(root)
+
+    def read_only(*args: object, **kwargs: object) -> None:
+        raise PermissionError(13, "Permission denied", str(tmp_path / "figs" / "summary.csv"))
+
+    monkeypatch.setattr(sim.sweep_figures, "write_summary", read_only)
+    with pytest.raises(SystemExit) as exc:
+        main(["figures", str(root), "--out", str(tmp_path / "figs"), "--quiet"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert f"error: --out: cannot write {tmp_path / 'figs' / 'summary.csv'}: Permission denied" in err

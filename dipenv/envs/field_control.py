@@ -42,7 +42,7 @@ from dipenv.rewards import (
     ViscosityTargetReward,
     default_target_viscosity,
 )
-from dipenv.state_library import DEFAULT_SPLIT_SIZES, SPLITS, StartState, StateLibrary
+from dipenv.state_library import DEFAULT_SPLIT_SIZES, SPLITS, StartState, StateLibrary, check_split_sizes
 
 DEFAULT_N_PARTICLES = 64
 DEFAULT_VOLUME_FRACTION = 0.45
@@ -147,6 +147,8 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if split_sizes is not None:
+            check_split_sizes(split_sizes)
         self.control_interval = float(control_interval)
         self.episode_steps = episode_steps
         self.mapping = FieldStrengthMapping(mason_min, mason_max, off_band)
