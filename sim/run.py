@@ -114,6 +114,8 @@ RUN_FILES = (
     "pair_distribution.npz",
     "msd.csv",
     "stress.png",
+    "layering.csv",
+    "layering.png",
 )
 """The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run."""
 
