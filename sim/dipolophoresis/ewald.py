@@ -73,8 +73,10 @@ separately controlled: with the velocity plan their relative errors were 1e-7..3
 Cost. Real space: a cell list in the sheared fractional coordinates, branch-free candidate and
 compaction loops, and a vectorised pair block (``erfc`` from a Chebyshev series of ``erfcx`` so that
 the only scalar transcendental is one ``exp`` per pair); about 4 ns per candidate and 17 ns per pair
-within ``r_c``. Fourier space: explicit structure factors from per-axis phase tables, about 1 ns per
-(particle, wave vector); or SPME (:mod:`sim.dipolophoresis.spme`) for large ``N``. Timings and the
+within ``r_c``. Fourier space: explicit structure factors from per-axis phase tables (built by
+recurrence), about 1.3 ns per (particle, wave vector) plus ~30 ns per wave vector for its
+position-independent factors, computed row by row in a vectorised loop (one exponential per row); or SPME
+(:mod:`sim.dipolophoresis.spme`) for large ``N``. Timings and the
 crossover are in the :mod:`sim.dipolophoresis.spme` docstring.
 
 References:
@@ -743,6 +745,81 @@ def _phase_table(s: np.ndarray, m_low: int, m_high: int) -> tuple[np.ndarray, np
 
 
 @njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
+def _wave_row(
+    kx: float,
+    ky: float,
+    m3_lo: int,
+    m3_hi: int,
+    unit: float,
+    xi: float,
+    q: tuple[float, float, float, float, float, float],
+    a_s: float,
+    a_t: float,
+    row_gauss: float,
+    gauss3: np.ndarray,
+    m_c: int,
+    coef: np.ndarray,
+) -> None:
+    """Per-wave factors of the modes ``k = (kx, ky, unit*m3)``, ``m3 = m3_lo..m3_hi`` (weight 2).
+
+    Branch-free (vectorised) form of :func:`_fourier_mode`, none of it depending on the positions:
+    ``coef[0:3, t]`` the velocity vector ``16 pi (g/k^2) w(k)``, ``coef[3:9, t]`` ``2 D^`` and
+    ``coef[9:15, t]`` ``2 K^`` (components ``xx, xy, xz, yy, yz, zz``) for ``t = m3 - m3_lo``, to be
+    multiplied by ``|rho(k)|^2``. ``exp(-k^2/4xi^2) = row_gauss * gauss3[m3 + m_c]``.
+    """
+    q00, q01, q02, q11, q12, q22 = q
+    inv4xi2 = 0.25 / (xi * xi)
+    kxy2 = kx * kx + ky * ky
+    four_pi = 4.0 * math.pi
+    for m3 in range(m3_lo, m3_hi + 1):
+        t = m3 - m3_lo
+        kz = unit * m3
+        k2 = kxy2 + kz * kz
+        gauss = row_gauss * gauss3[m3 + m_c]
+        g = (1.0 + k2 * inv4xi2) * gauss
+        big_g = g / k2
+        qk0 = q00 * kx + q01 * ky + q02 * kz
+        qk1 = q01 * kx + q11 * ky + q12 * kz
+        qk2 = q02 * kx + q12 * ky + q22 * kz
+        kqk = kx * qk0 + ky * qk1 + kz * qk2
+        lon = a_t * kqk - a_s * kqk / k2
+        pref = 16.0 * math.pi * big_g
+        coef[0, t] = pref * (a_s * qk0 + lon * kx)
+        coef[1, t] = pref * (a_s * qk1 + lon * ky)
+        coef[2, t] = pref * (a_s * qk2 + lon * kz)
+        g_prime = -gauss * (2.0 / (k2 * k2) + 2.0 * inv4xi2 / k2 + 2.0 * inv4xi2 * inv4xi2)
+        c_d = -four_pi * big_g
+        c_kk = 60.0 * math.pi * g * kqk / (k2 * k2)
+        c_diag = c_d * (3.0 * kqk + k2)
+        v_diag = four_pi * kqk * big_g
+        sxx = 2.0 * qk0 * kx
+        sxy = qk0 * ky + kx * qk1
+        sxz = qk0 * kz + kx * qk2
+        syy = 2.0 * qk1 * ky
+        syz = qk1 * kz + ky * qk2
+        szz = 2.0 * qk2 * kz
+        kxx = kx * kx
+        kxy = kx * ky
+        kxz = kx * kz
+        kyy = ky * ky
+        kyz = ky * kz
+        kzz = kz * kz
+        cv = four_pi * kqk * g_prime
+        coef[3, t] = 2.0 * (c_d * (3.0 * sxx - 3.0 * kxx) + c_kk * kxx + c_diag)
+        coef[4, t] = 2.0 * (c_d * (3.0 * sxy - 3.0 * kxy) + c_kk * kxy)
+        coef[5, t] = 2.0 * (c_d * (3.0 * sxz - 3.0 * kxz) + c_kk * kxz)
+        coef[6, t] = 2.0 * (c_d * (3.0 * syy - 3.0 * kyy) + c_kk * kyy + c_diag)
+        coef[7, t] = 2.0 * (c_d * (3.0 * syz - 3.0 * kyz) + c_kk * kyz)
+        coef[8, t] = 2.0 * (c_d * (3.0 * szz - 3.0 * kzz) + c_kk * kzz + c_diag)
+        coef[9, t] = 2.0 * (four_pi * sxx * big_g + kxx * cv + v_diag)
+        coef[10, t] = 2.0 * (four_pi * sxy * big_g + kxy * cv)
+        coef[11, t] = 2.0 * (four_pi * sxz * big_g + kxz * cv)
+        coef[12, t] = 2.0 * (four_pi * syy * big_g + kyy * cv + v_diag)
+        coef[13, t] = 2.0 * (four_pi * syz * big_g + kyz * cv)
+        coef[14, t] = 2.0 * (four_pi * szz * big_g + kzz * cv + v_diag)
+
+
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _ewald_fourier_sums(
     positions: np.ndarray,
     box_length: float,
@@ -760,6 +837,11 @@ def _ewald_fourier_sums(
 
     ``stresslet`` and ``virial`` receive ``sum_{all k != 0} D^ |rho|^2`` and ``K^ |rho|^2`` (not yet
     divided by ``V``); ``velocity`` receives the full Fourier part already divided by ``V``.
+
+    Per row ``(m1, m2)`` of wave vectors: the particle phases ``exp(i 2 pi (m1 s1 + m2 s2))`` from the
+    per-axis tables (built by recurrence), the position-independent factors of all the row's modes at
+    once (:func:`_wave_row`, one exponential per row, vectorised), then per mode the structure factor
+    (a running sum over the particles) and the velocity update (a vectorised loop over the particles).
     """
     n = positions.shape[0]
     volume = box_length**3
@@ -770,9 +852,16 @@ def _ewald_fourier_sums(
     m_c = int(math.floor(m_real))
     m2_max = int(math.ceil(1.5 * m_real)) + 1
     kc2 = k_cutoff * k_cutoff
+    inv4xi2 = 0.25 / (xi * xi)
     c1, s1 = _phase_table(s[:, 0], 0, m_c)
     c2, s2 = _phase_table(s[:, 1], -m2_max, m2_max)
     c3, s3 = _phase_table(s[:, 2], -m_c, m_c)
+    gauss3 = np.empty(2 * m_c + 1)
+    for j3 in range(2 * m_c + 1):
+        kz = unit * (j3 - m_c)
+        gauss3[j3] = math.exp(-kz * kz * inv4xi2)
+    qt = (q[0, 0], q[0, 1], q[0, 2], q[1, 1], q[1, 2], q[2, 2])
+    coef = np.empty((15, 2 * m_c + 1))
     p_re = np.empty(n)
     p_im = np.empty(n)
     e_re = np.empty(n)
@@ -780,6 +869,8 @@ def _ewald_fourier_sums(
     ux = np.zeros(n)
     uy = np.zeros(n)
     uz = np.zeros(n)
+    d_sum = np.zeros(6)
+    k_sum = np.zeros(6)
     for m1 in range(0, m_c + 1):
         kx = unit * m1
         centre = m1 * shear
@@ -806,9 +897,12 @@ def _ewald_fourier_sums(
                 b_i = s2[j2, p]
                 p_re[p] = a_r * b_r - a_i * b_i
                 p_im[p] = a_r * b_i + a_i * b_r
+            row_gauss = math.exp(-(kx * kx + ky * ky) * inv4xi2)
+            _wave_row(kx, ky, m3_lo, m3_hi, unit, xi, qt, a_s, a_t, row_gauss, gauss3, m_c, coef)
             for m3 in range(m3_lo, m3_hi + 1):
-                kz = unit * m3
+                t = m3 - m3_lo
                 j3 = m3 + m_c
+                # rho(k) = sum exp(-i k.x) = sum_re - i sum_im; |rho|^2 = sum_re^2 + sum_im^2.
                 sum_re = 0.0
                 sum_im = 0.0
                 for p in range(n):
@@ -820,15 +914,24 @@ def _ewald_fourier_sums(
                     e_im[p] = ei
                     sum_re += er
                     sum_im += ei
-                # rho(k) = sum exp(-i k.x) = sum_re - i sum_im; |rho|^2 = sum_re^2 + sum_im^2.
-                wx, wy, wz = _fourier_mode(
-                    kx, ky, kz, xi, q, a_s, a_t, 2.0, sum_re * sum_re + sum_im * sum_im, stresslet, virial
-                )
+                rho2 = sum_re * sum_re + sum_im * sum_im
+                for c in range(6):
+                    d_sum[c] += rho2 * coef[3 + c, t]
+                    k_sum[c] += rho2 * coef[9 + c, t]
+                wx = coef[0, t]
+                wy = coef[1, t]
+                wz = coef[2, t]
                 for p in range(n):
-                    t = e_im[p] * sum_re - e_re[p] * sum_im
-                    ux[p] += wx * t
-                    uy[p] += wy * t
-                    uz[p] += wz * t
+                    f = e_im[p] * sum_re - e_re[p] * sum_im
+                    ux[p] += wx * f
+                    uy[p] += wy * f
+                    uz[p] += wz * f
+    column = 0
+    for i in range(3):
+        for j in range(i, 3):
+            stresslet[i, j] += d_sum[column]
+            virial[i, j] += k_sum[column]
+            column += 1
     for p in range(n):
         velocity[p, 0] += ux[p] / volume
         velocity[p, 1] += uy[p] / volume
