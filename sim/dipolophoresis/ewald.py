@@ -43,7 +43,11 @@ reciprocal lattice ``k = (2 pi/L) (m1, m2 - m1 delta/L, m3)`` with one shared st
 ``rho(k) = sum_beta exp(-i k.x_beta)`` (all spheres carry the same ``Q``). The velocity multiplier is
 ``-8 pi i (g/k^2) [a_S (Q.k - k (k.Q.k)/k^2) + a_T k (k.Q.k)]``. The self terms (Fourier part at
 ``x = 0``) vanish for all three quantities (odd kernels; and for ``dS`` and the virial by direct
-evaluation), and with ``real_cutoff <= L/2`` one minimum image per pair is the only real-space image.
+evaluation). The real-space sum takes every image within ``r_c``: with ``r_c <= L/2`` that is one
+minimum image per pair; in small boxes the plan may take ``r_c`` up to ``1.5 L`` (several images per pair,
+the Lees–Edwards images shifted by ``delta``; and for ``r_c > L`` a sphere's own images, which add stress
+but no velocity), so that a smaller ``xi`` needs far fewer wave vectors (issue 22: N = 64 at phi = 0.45,
+``L = 8.4``: ``xi`` 1.16 -> 0.61, ~6300 -> ~800 wave vectors).
 
 Error estimate (rms per particle, random positions; Kolafa & Perram 1992 style). With density
 ``n = N/V`` and orientation-averaged squared kernels,
@@ -69,8 +73,10 @@ separately controlled: with the velocity plan their relative errors were 1e-7..3
 Cost. Real space: a cell list in the sheared fractional coordinates, branch-free candidate and
 compaction loops, and a vectorised pair block (``erfc`` from a Chebyshev series of ``erfcx`` so that
 the only scalar transcendental is one ``exp`` per pair); about 4 ns per candidate and 17 ns per pair
-within ``r_c``. Fourier space: explicit structure factors from per-axis phase tables, about 1 ns per
-(particle, wave vector); or SPME (:mod:`sim.dipolophoresis.spme`) for large ``N``. Timings and the
+within ``r_c``. Fourier space: explicit structure factors from per-axis phase tables (built by
+recurrence), about 1.3 ns per (particle, wave vector) plus ~30 ns per wave vector for its
+position-independent factors, computed row by row in a vectorised loop (one exponential per row); or SPME
+(:mod:`sim.dipolophoresis.spme`) for large ``N``. Timings and the
 crossover are in the :mod:`sim.dipolophoresis.spme` docstring.
 
 References:
@@ -117,7 +123,7 @@ class EwaldPlan(NamedTuple):
 
     Attributes:
         splitting: Ewald splitting parameter ``xi`` (units ``1/a``).
-        real_cutoff: Real-space cut-off ``r_c`` (units ``a``), ``<= L/2``.
+        real_cutoff: Real-space cut-off ``r_c`` (units ``a``), ``<= 1.5 L`` (every image within it is summed).
         k_cutoff: Fourier cut-off ``k_c`` (units ``1/a``): wave vectors with ``|k| <= k_c`` are summed.
         method: :data:`METHOD_EWALD` or :data:`METHOD_SPME`.
         mesh: SPME mesh ``(K1, K2, K3)`` along the sheared-lattice axes (unused by plain Ewald).
@@ -326,6 +332,137 @@ def _real_space_block(
     return s0, s1, s2, s3, s4, s5, v0, v1, v2, v3, v4, v5
 
 
+_MAX_CELLS_PER_AXIS = 8
+"""Largest number of cells per axis tried by :func:`_image_cells` (``r_c > L/2``)."""
+_COST_CELL_SLICE = 12e-9
+"""Modelled cost (s) of one contiguous slice of neighbouring cells scanned for one particle."""
+
+
+@njit(cache=True)
+def _image_cells(
+    box_length: float,
+    offset: float,
+    cutoff: float,
+    n_particles: int,
+    cost_candidate: float,
+    cost_slice: float,
+) -> tuple[int, int, int, int, int, int]:
+    """Cells ``(n1, n2, n3)`` and neighbour spans ``(s1, s2, s3)`` of the real-space cell list.
+
+    ``r_c <= L/2`` (one image per pair): ``n_d = floor(h_d/r_c)`` cells with span 1 where that is at
+    least 3, else one cell and span 0 (the image is then chosen by rounding). ``r_c > L/2`` (several
+    images per pair): ``n_d`` cells of width ``h_d/n_d`` and the span ``s_d = floor(r_c n_d/h_d) + 1``
+    (every partner image within ``r_c`` lies within ``s_d`` cells: its fractional coordinate differs by
+    at most ``r_c/h_d``), with ``n_d <= 8`` chosen per axis to minimise the modelled cost: candidates
+    ``(N/2) prod (2 s_d + 1)/n_d`` and contiguous slices
+    ``(2 s_1 + 1)(2 s_2 + 1) (ceil((2 s_3 + 1)/n_3) + 1)``
+    per particle. ``h_1 = L/sqrt(1 + (delta/L)^2)``, ``h_2 = h_3 = L`` are the lattice-plane spacings.
+    """
+    shear = offset / box_length
+    spacing1 = box_length / math.sqrt(1.0 + shear * shear)
+    if cutoff <= 0.5 * box_length:
+        out = np.empty(6, dtype=np.int64)
+        for d in range(3):
+            h = spacing1 if d == 0 else box_length
+            cells = int(math.floor(h / cutoff))
+            if cells >= 3:
+                out[d] = cells
+                out[3 + d] = 1
+            else:
+                out[d] = 1
+                out[3 + d] = 0
+        return out[0], out[1], out[2], out[3], out[4], out[5]
+    best = math.inf
+    b = (1, 1, 1, 1, 1, 1)
+    for n1 in range(1, _MAX_CELLS_PER_AXIS + 1):
+        s1 = int(math.floor(cutoff * n1 / spacing1)) + 1
+        f1 = (2.0 * s1 + 1.0) / n1
+        for n2 in range(1, _MAX_CELLS_PER_AXIS + 1):
+            s2 = int(math.floor(cutoff * n2 / box_length)) + 1
+            f2 = (2.0 * s2 + 1.0) / n2
+            for n3 in range(1, _MAX_CELLS_PER_AXIS + 1):
+                s3 = int(math.floor(cutoff * n3 / box_length)) + 1
+                f3 = (2.0 * s3 + 1.0) / n3
+                slices = (2.0 * s1 + 1.0) * (2.0 * s2 + 1.0) * (math.ceil((2.0 * s3 + 1.0) / n3) + 1.0)
+                cost = cost_candidate * 0.5 * n_particles * f1 * f2 * f3 + cost_slice * slices
+                if cost < best:
+                    best = cost
+                    b = (n1, n2, n3, s1, s2, s3)
+    return b
+
+
+@njit(cache=True, error_model="numpy")
+def _self_image_sums(
+    box_length: float,
+    offset: float,
+    xi: float,
+    cutoff: float,
+    q: np.ndarray,
+    a_s: float,
+    a_t: float,
+    n_particles: int,
+    sums: np.ndarray,
+) -> None:
+    """Stress sums of every sphere with its own images ``n != 0`` within ``cutoff`` (none if ``r_c <= L``).
+
+    The lattice vectors ``(n1 L + n2 delta, n2 L, n3 L)`` with ``|n| < r_c`` are taken once per pair
+    ``+-n`` (``n`` in a half space), as the pair sums take each pair once; their velocities cancel
+    (odd kernel). All spheres see the same images: ``N`` times one sum into ``sums`` (2, 6).
+    """
+    rc2 = cutoff * cutoff
+    k2 = int(math.floor(cutoff / box_length))
+    capacity = (2 * k2 + 1) * (2 * k2 + 1) * (2 * k2 + 3)
+    bx = np.empty(capacity)
+    by = np.empty(capacity)
+    bz = np.empty(capacity)
+    br2 = np.empty(capacity)
+    bgauss = np.empty(capacity)
+    count = 0
+    for n2 in range(0, k2 + 1):
+        for n3 in range(-k2, k2 + 1):
+            if n2 == 0 and n3 < 0:
+                continue
+            x_lo = -cutoff - n2 * offset
+            x_hi = cutoff - n2 * offset
+            for n1 in range(int(math.ceil(x_lo / box_length)), int(math.floor(x_hi / box_length)) + 1):
+                if n2 == 0 and n3 == 0 and n1 <= 0:
+                    continue
+                dx = n1 * box_length + n2 * offset
+                dy = n2 * box_length
+                dz = n3 * box_length
+                r2 = dx * dx + dy * dy + dz * dz
+                if r2 >= rc2:
+                    continue
+                bx[count] = dx
+                by[count] = dy
+                bz[count] = dz
+                br2[count] = r2
+                bgauss[count] = math.exp(-xi * xi * r2)
+                count += 1
+    if count == 0:
+        return
+    qt = (q[0, 0], q[0, 1], q[0, 2], q[1, 1], q[1, 2], q[2, 2])
+    t = _real_space_block(
+        count,
+        bx,
+        by,
+        bz,
+        br2,
+        bgauss,
+        xi,
+        qt,
+        a_s,
+        a_t,
+        np.empty(count),
+        np.empty(count),
+        np.empty(count),
+        np.empty(count),
+    )
+    for j in range(6):
+        sums[0, j] += n_particles * t[j]
+        sums[1, j] += n_particles * t[6 + j]
+
+
 @njit(cache=True, error_model="numpy")
 def _real_space_sums(
     positions: np.ndarray,
@@ -339,44 +476,39 @@ def _real_space_sums(
     velocity: np.ndarray,
     sums: np.ndarray,
 ) -> None:
-    """Real-space sums over pairs within ``cutoff <= L/2`` (the one image closer than ``L/2``).
+    """Real-space sums over all pair images within ``cutoff`` (any ``r_c``; several images if ``> L/2``).
 
     Cell list in the sheared fractional coordinates ``s`` (:func:`_fractional_coordinates`; the lattice
     is the integer lattice there, so cells wrap independently per axis and the image shift of a
-    neighbouring cell is a known integer). Cartesian separation from ``ds``:
-    ``(L ds1 + delta ds2, L ds2, L ds3)``. The planes ``s1 = const`` are ``L/sqrt(1 + (delta/L)^2)``
-    apart and those of ``s2``, ``s3`` are ``L`` apart, so with ``n_d = floor(h_d/r_c) >= 3`` cells
-    (``h_d`` the plane spacing) every partner within ``r_c`` lies in a neighbouring cell; with fewer
-    than 3 cells the axis has a single cell and the image is chosen by rounding
+    neighbouring cell is a known integer: a cell ``c + d`` outside ``0..n-1`` is cell ``(c + d) mod n``
+    shifted by ``floor((c + d)/n)`` lattice periods, so with spans larger than the cell count each
+    partner is visited once per image in reach, which is how the Lees–Edwards offset enters: an image
+    one period up in ``y`` is shifted by ``delta`` in ``x``). Cartesian separation from ``ds``:
+    ``(L ds1 + delta ds2, L ds2, L ds3)``. Cells and spans from :func:`_image_cells`; with ``r_c <= L/2``
+    an axis of fewer than 3 cells has a single cell and the image is chosen by rounding
     (Cartesian, ``y`` before ``x``, as in :func:`sim.geometry.box.minimum_image`, exact for
     ``|r| < L/2``). Particles are sorted by cell, so each neighbouring cell (and each run of
-    neighbours along axis 3) is a contiguous slice; each
-    pair is taken once (sorted index of beta above that of alpha). Candidate distances and the
+    neighbours along axis 3 with the same image shift) is a contiguous slice; each
+    pair image is taken once (sorted index of beta above that of alpha, every image; a sphere's own
+    images, present only for ``r_c > L``, by :func:`_self_image_sums`). Candidate distances and the
     compaction of the pairs within ``r_c`` are branch-free loops, the pair terms are evaluated by
     :func:`_real_space_block`. Accumulates into ``velocity`` (N, 3) and ``sums`` (2, 6).
     """
     n = positions.shape[0]
     rc2 = cutoff * cutoff
     xi2 = xi * xi
-    shear = offset / box_length
-    spacing1 = box_length / math.sqrt(1.0 + shear * shear)
     s = _fractional_coordinates(positions, box_length, offset)
-    counts = np.empty(3, dtype=np.int64)
-    spans = np.empty(3, dtype=np.int64)
-    for d in range(3):
-        h = spacing1 if d == 0 else box_length
-        if int(math.floor(h / cutoff)) >= 3:
-            counts[d] = int(math.floor(h / cutoff))
-            spans[d] = 1
-        else:
-            counts[d] = 1
-            spans[d] = 0
-    n1 = counts[0]
-    n2 = counts[1]
-    n3 = counts[2]
-    round1 = 1.0 if spans[0] == 0 else 0.0
-    round2 = 1.0 if spans[1] == 0 else 0.0
-    round3 = 1.0 if spans[2] == 0 else 0.0
+    n1, n2, n3, span1, span2, span3 = _image_cells(
+        box_length, offset, cutoff, n, _COST_CANDIDATE, _COST_CELL_SLICE
+    )
+    round1 = 1.0 if span1 == 0 else 0.0
+    round2 = 1.0 if span2 == 0 else 0.0
+    round3 = 1.0 if span3 == 0 else 0.0
+    # Each partner appears at most this many times among the neighbouring cells of one particle.
+    repeats = (
+        ((2 * span1 + 1 + n1 - 1) // n1) * ((2 * span2 + 1 + n2 - 1) // n2) * ((2 * span3 + 1 + n3 - 1) // n3)
+    )
+    capacity = n * repeats
     n_cells = n1 * n2 * n3
     cell = np.empty(n, dtype=np.int64)
     cell_start = np.zeros(n_cells + 1, dtype=np.int64)
@@ -405,17 +537,17 @@ def _real_space_sums(
     cy = np.empty(n)
     cz = np.empty(n)
     cr2 = np.empty(n)
-    bx = np.empty(n)
-    by = np.empty(n)
-    bz = np.empty(n)
-    br2 = np.empty(n)
-    bgauss = np.empty(n)
-    erfc_buf = np.empty(n)
-    partner = np.empty(n, dtype=np.int64)
-    picked = np.empty(n, dtype=np.int64)
-    ux = np.empty(n)
-    uy = np.empty(n)
-    uz = np.empty(n)
+    bx = np.empty(capacity)
+    by = np.empty(capacity)
+    bz = np.empty(capacity)
+    br2 = np.empty(capacity)
+    bgauss = np.empty(capacity)
+    erfc_buf = np.empty(capacity)
+    partner = np.empty(capacity, dtype=np.int64)
+    picked = np.empty(capacity, dtype=np.int64)
+    ux = np.empty(capacity)
+    uy = np.empty(capacity)
+    uz = np.empty(capacity)
     vsorted = np.zeros((n, 3))
     for i in range(n):
         c = cell[order[i]]
@@ -427,44 +559,25 @@ def _real_space_sums(
         sa3 = t3[i]
         count = 0
         start = 0
-        for d1 in range(-spans[0], spans[0] + 1):
+        for d1 in range(-span1, span1 + 1):
             e1 = c1 + d1
-            w1 = 0.0
-            if e1 < 0:
-                e1 += n1
-                w1 = -1.0
-            elif e1 >= n1:
-                e1 -= n1
-                w1 = 1.0
-            for d2 in range(-spans[1], spans[1] + 1):
+            k1 = e1 // n1  # image shift (lattice periods) of the neighbouring cell
+            e1 -= k1 * n1
+            w1 = float(k1)
+            for d2 in range(-span2, span2 + 1):
                 e2 = c2 + d2
-                w2 = 0.0
-                if e2 < 0:
-                    e2 += n2
-                    w2 = -1.0
-                elif e2 >= n2:
-                    e2 -= n2
-                    w2 = 1.0
+                k2 = e2 // n2
+                e2 -= k2 * n2
+                w2 = float(k2)
                 row = (e1 * n2 + e2) * n3
-                # Along axis 3 the neighbouring cells are one contiguous slice unless they wrap.
-                merged = spans[2] >= 1 and c3 >= spans[2] and c3 + spans[2] < n3
-                for d3 in range(-spans[2], spans[2] + 1):
-                    if merged and d3 != 0:
-                        continue
-                    e3 = c3 + d3
-                    w3 = 0.0
-                    if e3 < 0:
-                        e3 += n3
-                        w3 = -1.0
-                    elif e3 >= n3:
-                        e3 -= n3
-                        w3 = 1.0
-                    if merged:
-                        lo = max(cell_start[row + c3 - spans[2]], i + 1)
-                        hi = cell_start[row + c3 + spans[2] + 1]
-                    else:
-                        lo = max(cell_start[row + e3], i + 1)
-                        hi = cell_start[row + e3 + 1]
+                # Along axis 3 the neighbouring cells c3 - span3 .. c3 + span3 are one contiguous slice
+                # per image shift k3.
+                for k3 in range((c3 - span3) // n3, (c3 + span3) // n3 + 1):
+                    w3 = float(k3)
+                    first = max(c3 - span3 - k3 * n3, 0)
+                    last = min(c3 + span3 - k3 * n3, n3 - 1)
+                    lo = max(cell_start[row + first], i + 1)
+                    hi = cell_start[row + last + 1]
                     m = hi - lo
                     if m <= 0:
                         continue
@@ -520,6 +633,8 @@ def _real_space_sums(
         velocity[p, 0] += vsorted[i, 0]
         velocity[p, 1] += vsorted[i, 1]
         velocity[p, 2] += vsorted[i, 2]
+    if cutoff > box_length:
+        _self_image_sums(box_length, offset, xi, cutoff, q, a_s, a_t, n, sums)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -630,6 +745,81 @@ def _phase_table(s: np.ndarray, m_low: int, m_high: int) -> tuple[np.ndarray, np
 
 
 @njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
+def _wave_row(
+    kx: float,
+    ky: float,
+    m3_lo: int,
+    m3_hi: int,
+    unit: float,
+    xi: float,
+    q: tuple[float, float, float, float, float, float],
+    a_s: float,
+    a_t: float,
+    row_gauss: float,
+    gauss3: np.ndarray,
+    m_c: int,
+    coef: np.ndarray,
+) -> None:
+    """Per-wave factors of the modes ``k = (kx, ky, unit*m3)``, ``m3 = m3_lo..m3_hi`` (weight 2).
+
+    Branch-free (vectorised) form of :func:`_fourier_mode`, none of it depending on the positions:
+    ``coef[0:3, t]`` the velocity vector ``16 pi (g/k^2) w(k)``, ``coef[3:9, t]`` ``2 D^`` and
+    ``coef[9:15, t]`` ``2 K^`` (components ``xx, xy, xz, yy, yz, zz``) for ``t = m3 - m3_lo``, to be
+    multiplied by ``|rho(k)|^2``. ``exp(-k^2/4xi^2) = row_gauss * gauss3[m3 + m_c]``.
+    """
+    q00, q01, q02, q11, q12, q22 = q
+    inv4xi2 = 0.25 / (xi * xi)
+    kxy2 = kx * kx + ky * ky
+    four_pi = 4.0 * math.pi
+    for m3 in range(m3_lo, m3_hi + 1):
+        t = m3 - m3_lo
+        kz = unit * m3
+        k2 = kxy2 + kz * kz
+        gauss = row_gauss * gauss3[m3 + m_c]
+        g = (1.0 + k2 * inv4xi2) * gauss
+        big_g = g / k2
+        qk0 = q00 * kx + q01 * ky + q02 * kz
+        qk1 = q01 * kx + q11 * ky + q12 * kz
+        qk2 = q02 * kx + q12 * ky + q22 * kz
+        kqk = kx * qk0 + ky * qk1 + kz * qk2
+        lon = a_t * kqk - a_s * kqk / k2
+        pref = 16.0 * math.pi * big_g
+        coef[0, t] = pref * (a_s * qk0 + lon * kx)
+        coef[1, t] = pref * (a_s * qk1 + lon * ky)
+        coef[2, t] = pref * (a_s * qk2 + lon * kz)
+        g_prime = -gauss * (2.0 / (k2 * k2) + 2.0 * inv4xi2 / k2 + 2.0 * inv4xi2 * inv4xi2)
+        c_d = -four_pi * big_g
+        c_kk = 60.0 * math.pi * g * kqk / (k2 * k2)
+        c_diag = c_d * (3.0 * kqk + k2)
+        v_diag = four_pi * kqk * big_g
+        sxx = 2.0 * qk0 * kx
+        sxy = qk0 * ky + kx * qk1
+        sxz = qk0 * kz + kx * qk2
+        syy = 2.0 * qk1 * ky
+        syz = qk1 * kz + ky * qk2
+        szz = 2.0 * qk2 * kz
+        kxx = kx * kx
+        kxy = kx * ky
+        kxz = kx * kz
+        kyy = ky * ky
+        kyz = ky * kz
+        kzz = kz * kz
+        cv = four_pi * kqk * g_prime
+        coef[3, t] = 2.0 * (c_d * (3.0 * sxx - 3.0 * kxx) + c_kk * kxx + c_diag)
+        coef[4, t] = 2.0 * (c_d * (3.0 * sxy - 3.0 * kxy) + c_kk * kxy)
+        coef[5, t] = 2.0 * (c_d * (3.0 * sxz - 3.0 * kxz) + c_kk * kxz)
+        coef[6, t] = 2.0 * (c_d * (3.0 * syy - 3.0 * kyy) + c_kk * kyy + c_diag)
+        coef[7, t] = 2.0 * (c_d * (3.0 * syz - 3.0 * kyz) + c_kk * kyz)
+        coef[8, t] = 2.0 * (c_d * (3.0 * szz - 3.0 * kzz) + c_kk * kzz + c_diag)
+        coef[9, t] = 2.0 * (four_pi * sxx * big_g + kxx * cv + v_diag)
+        coef[10, t] = 2.0 * (four_pi * sxy * big_g + kxy * cv)
+        coef[11, t] = 2.0 * (four_pi * sxz * big_g + kxz * cv)
+        coef[12, t] = 2.0 * (four_pi * syy * big_g + kyy * cv + v_diag)
+        coef[13, t] = 2.0 * (four_pi * syz * big_g + kyz * cv)
+        coef[14, t] = 2.0 * (four_pi * szz * big_g + kzz * cv + v_diag)
+
+
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _ewald_fourier_sums(
     positions: np.ndarray,
     box_length: float,
@@ -647,6 +837,11 @@ def _ewald_fourier_sums(
 
     ``stresslet`` and ``virial`` receive ``sum_{all k != 0} D^ |rho|^2`` and ``K^ |rho|^2`` (not yet
     divided by ``V``); ``velocity`` receives the full Fourier part already divided by ``V``.
+
+    Per row ``(m1, m2)`` of wave vectors: the particle phases ``exp(i 2 pi (m1 s1 + m2 s2))`` from the
+    per-axis tables (built by recurrence), the position-independent factors of all the row's modes at
+    once (:func:`_wave_row`, one exponential per row, vectorised), then per mode the structure factor
+    (a running sum over the particles) and the velocity update (a vectorised loop over the particles).
     """
     n = positions.shape[0]
     volume = box_length**3
@@ -657,9 +852,16 @@ def _ewald_fourier_sums(
     m_c = int(math.floor(m_real))
     m2_max = int(math.ceil(1.5 * m_real)) + 1
     kc2 = k_cutoff * k_cutoff
+    inv4xi2 = 0.25 / (xi * xi)
     c1, s1 = _phase_table(s[:, 0], 0, m_c)
     c2, s2 = _phase_table(s[:, 1], -m2_max, m2_max)
     c3, s3 = _phase_table(s[:, 2], -m_c, m_c)
+    gauss3 = np.empty(2 * m_c + 1)
+    for j3 in range(2 * m_c + 1):
+        kz = unit * (j3 - m_c)
+        gauss3[j3] = math.exp(-kz * kz * inv4xi2)
+    qt = (q[0, 0], q[0, 1], q[0, 2], q[1, 1], q[1, 2], q[2, 2])
+    coef = np.empty((15, 2 * m_c + 1))
     p_re = np.empty(n)
     p_im = np.empty(n)
     e_re = np.empty(n)
@@ -667,6 +869,8 @@ def _ewald_fourier_sums(
     ux = np.zeros(n)
     uy = np.zeros(n)
     uz = np.zeros(n)
+    d_sum = np.zeros(6)
+    k_sum = np.zeros(6)
     for m1 in range(0, m_c + 1):
         kx = unit * m1
         centre = m1 * shear
@@ -693,9 +897,12 @@ def _ewald_fourier_sums(
                 b_i = s2[j2, p]
                 p_re[p] = a_r * b_r - a_i * b_i
                 p_im[p] = a_r * b_i + a_i * b_r
+            row_gauss = math.exp(-(kx * kx + ky * ky) * inv4xi2)
+            _wave_row(kx, ky, m3_lo, m3_hi, unit, xi, qt, a_s, a_t, row_gauss, gauss3, m_c, coef)
             for m3 in range(m3_lo, m3_hi + 1):
-                kz = unit * m3
+                t = m3 - m3_lo
                 j3 = m3 + m_c
+                # rho(k) = sum exp(-i k.x) = sum_re - i sum_im; |rho|^2 = sum_re^2 + sum_im^2.
                 sum_re = 0.0
                 sum_im = 0.0
                 for p in range(n):
@@ -707,15 +914,24 @@ def _ewald_fourier_sums(
                     e_im[p] = ei
                     sum_re += er
                     sum_im += ei
-                # rho(k) = sum exp(-i k.x) = sum_re - i sum_im; |rho|^2 = sum_re^2 + sum_im^2.
-                wx, wy, wz = _fourier_mode(
-                    kx, ky, kz, xi, q, a_s, a_t, 2.0, sum_re * sum_re + sum_im * sum_im, stresslet, virial
-                )
+                rho2 = sum_re * sum_re + sum_im * sum_im
+                for c in range(6):
+                    d_sum[c] += rho2 * coef[3 + c, t]
+                    k_sum[c] += rho2 * coef[9 + c, t]
+                wx = coef[0, t]
+                wy = coef[1, t]
+                wz = coef[2, t]
                 for p in range(n):
-                    t = e_im[p] * sum_re - e_re[p] * sum_im
-                    ux[p] += wx * t
-                    uy[p] += wy * t
-                    uz[p] += wz * t
+                    f = e_im[p] * sum_re - e_re[p] * sum_im
+                    ux[p] += wx * f
+                    uy[p] += wy * f
+                    uz[p] += wz * f
+    column = 0
+    for i in range(3):
+        for j in range(i, 3):
+            stresslet[i, j] += d_sum[column]
+            virial[i, j] += k_sum[column]
+            column += 1
     for p in range(n):
         velocity[p, 0] += ux[p] / volume
         velocity[p, 1] += uy[p] / volume
@@ -983,7 +1199,7 @@ def dip_far_field(
     real_sums = np.zeros((2, 6))
     four_d = np.zeros((3, 3))
     four_k = np.zeros((3, 3))
-    if n > 1:
+    if n > 1 or plan.real_cutoff > box_length:  # pairs, or a single sphere's own images
         _real_space_sums(
             positions, box_length, offset, plan.splitting, plan.real_cutoff, q, a_s, a_t, velocity, real_sums
         )
@@ -1070,15 +1286,31 @@ _COST_SPLINE_POINT = 2.0e-9
 _COST_MESH_POINT = 45e-9
 _COST_MESH_WAVE = 30e-9
 
+_MAX_REAL_CUTOFF = 1.5
+"""Largest real-space cut-off a plan may take, in units of ``L`` (sums over several images above ``L/2``)."""
+
 
 def _real_space_cost(box_length: float, n_particles: int, cutoff: float) -> float:
     """Modelled cost (s) of :func:`_real_space_sums` (cell list as there, at zero shear)."""
     density = n_particles / box_length**3
-    cells = int(math.floor(box_length / cutoff))
-    fraction = 1.0 if cells < 3 else 27.0 / cells**3
-    candidates = 0.5 * n_particles * n_particles * fraction
     pairs = 0.5 * n_particles * density * (4.0 * math.pi / 3.0) * cutoff**3
-    return _COST_PARTICLE * n_particles + _COST_CANDIDATE * candidates + _COST_PAIR * pairs
+    if cutoff <= 0.5 * box_length:
+        cells = int(math.floor(box_length / cutoff))
+        fraction = 1.0 if cells < 3 else 27.0 / cells**3
+        candidates = 0.5 * n_particles * n_particles * fraction
+        return _COST_PARTICLE * n_particles + _COST_CANDIDATE * candidates + _COST_PAIR * pairs
+    n1, n2, n3, s1, s2, s3 = _image_cells(
+        box_length, 0.0, cutoff, n_particles, _COST_CANDIDATE, _COST_CELL_SLICE
+    )
+    fraction = (2.0 * s1 + 1.0) * (2.0 * s2 + 1.0) * (2.0 * s3 + 1.0) / (n1 * n2 * n3)
+    slices = (2.0 * s1 + 1.0) * (2.0 * s2 + 1.0) * (math.ceil((2.0 * s3 + 1.0) / n3) + 1.0)
+    candidates = 0.5 * n_particles * n_particles * fraction
+    return (
+        _COST_PARTICLE * n_particles
+        + _COST_CANDIDATE * candidates
+        + _COST_CELL_SLICE * slices * n_particles
+        + _COST_PAIR * pairs
+    )
 
 
 _PANELS = (0.0, 0.125, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
@@ -1190,9 +1422,14 @@ def _cutoffs_for(
     k_c = 0.0
     for (a_s, a_t), target in zip(coefficients, targets, strict=True):
         t = share * target
-        rc = _solve_cutoff(
-            lambda c, a_s=a_s, a_t=a_t: _real_error(xi, c, density, a_s, a_t), t, 1e-3, 0.5 * box_length
-        )
+
+        def real_error(c: float, a_s: float = a_s, a_t: float = a_t) -> float:
+            return _real_error(xi, c, density, a_s, a_t)
+
+        # Nearest-image range first (as before sums over several images: the same root there).
+        rc = _solve_cutoff(real_error, t, 1e-3, 0.5 * box_length)
+        if rc is None:
+            rc = _solve_cutoff(real_error, t, 0.5 * box_length, _MAX_REAL_CUTOFF * box_length)
         if rc is None:
             return None
         kc = _solve_cutoff(
@@ -1243,7 +1480,8 @@ def ewald_plan(
     times the rms velocity of the mechanism the plan is made for (``accuracy * U_ref``, ``U_ref`` a
     calibrated lower bound of the rms velocity of hard-sphere suspensions), at every Lees–Edwards
     offset (the Fourier sum covers the whole ball ``|k| <= k_c`` whatever the shear, and the
-    real-space estimate does not depend on it). The real-space cut-off is at most ``L/2``. Among the
+    real-space estimate does not depend on it). The real-space cut-off is at most ``1.5 L`` (above ``L/2``
+    the real-space sums take several images per pair: the plan of small boxes). Among the
     admissible splitting parameters the one of least modelled cost is taken. Made once per run.
 
     Args:
@@ -1263,7 +1501,7 @@ def ewald_plan(
 
     Raises:
         ValueError: An argument is out of range, or no splitting parameter meets ``accuracy`` with
-            ``r_c <= L/2`` (the message names the parameter).
+            ``r_c <= 1.5 L`` (the message names the parameter).
 
     References:
         Kolafa & Perram (1992); Essmann et al. (1995); Deserno & Holm (1998) J. Chem. Phys. 109, 7678.
@@ -1291,9 +1529,14 @@ def ewald_plan(
     if splitting is not None:
         candidates = [float(splitting)]
     else:
-        # xi r_c ~ 2.5..7 for the accuracies allowed; scan from the smallest admissible xi upwards.
+        # xi r_c ~ 2.5..7 for the accuracies allowed; scan from the smallest admissible xi upwards:
+        # the grid of the nearest-image sums (r_c <= L/2, from xi = 4/L up), extended downwards in the
+        # same geometric steps to xi = 2/r_c,max for sums over several images (small boxes).
         xi_min = 2.0 / (0.5 * box_length)
-        candidates = list(xi_min * np.geomspace(1.0, 12.0, 40))
+        ratio = 12.0 ** (1.0 / 39.0)
+        extra = math.ceil(math.log(_MAX_REAL_CUTOFF / 0.5) / math.log(ratio))
+        candidates = [xi_min * ratio ** (-j) for j in range(extra, 0, -1)]
+        candidates += list(xi_min * np.geomspace(1.0, 12.0, 40))
     best: EwaldPlan | None = None
     best_cost = math.inf
     for xi in candidates:
@@ -1327,7 +1570,7 @@ def ewald_plan(
             best, best_cost = plan, cost
     if best is None:
         raise ValueError(
-            f"accuracy={accuracy!r} cannot be met with real_cutoff <= L/2 for box_length={box_length!r}"
-            + (f" and splitting={splitting!r}" if splitting is not None else "")
+            f"accuracy={accuracy!r} cannot be met with real_cutoff <= {_MAX_REAL_CUTOFF:g} L for "
+            f"box_length={box_length!r}" + (f" and splitting={splitting!r}" if splitting is not None else "")
         )
     return best
