@@ -80,7 +80,7 @@ def check_default_nodes(nodes: np.ndarray, settings: driver.Record) -> None:
 
 
 def far_field_values(r: float) -> np.ndarray:
-    """Far-field forms of the ten functions (physics.md section 4 and the module docstring)."""
+    """Far-field forms of the ten functions (docs/model.md#dipolophoresis and the module docstring)."""
     icep = np.array(ICEP_FAR_FIELD_COEFFICIENTS) / r**3
     dep = np.array([8.0 / r**8, 7.5 / r**6, -22.5 / r**6])
     force = np.array([-6.0, 3.0, 3.0]) / r**4
@@ -107,7 +107,7 @@ def format_table(
         "# icep_f1..f4: ICEP pair correction of ONE sphere, dS = S_alpha - 9 (ee - I/3), force- and",
         "#   torque-free spheres with slip u_s = +zeta grad_s(phi), units pi eps a^3 E0^2",
         "#   (S_alpha = S_beta exactly).",
-        "#   Far field (physics.md section 4; confirmed): (9, -36, -45/2, 225/2)/r^3; the exact residual is",
+        "#   Far field (docs/model.md; confirmed): (9, -36, -45/2, 225/2)/r^3; the exact residual is",
         "#   -(57/2)(1, -5, -5/2, 35/2)/r^5 (fitted, r = 10..160).",
         "# dep_g2..g4: stresslet of ONE sphere moving rigidly under the exact Maxwell forces +-F (g1 = 0),",
         "#   units pi eps a^3 E0^2; far field g2 = 8/r^8, g3 = 15/(2 r^6), g4 = -45/(2 r^6).",

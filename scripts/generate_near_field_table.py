@@ -76,7 +76,7 @@ def format_table(
         "# polarised double layers) in a uniform field: induced-charge electrophoresis (ICEP) and",
         "# dielectrophoresis (DEP). Velocity of sphere alpha, xh from beta to alpha, th = angle(e, xh):",
         "#   U_alpha = U0 [(F_par cos^2 th + F_perp sin^2 th) xh + F_x sin(2 th) t],  U0 = eps a E0^2/eta",
-        "# (physics.md section 4; Saintillan 2008, Phys. Fluids 20, 067104). Isolated pair: no images,",
+        "# (docs/model.md; Saintillan 2008, Phys. Fluids 20, 067104). Isolated pair: no images,",
         "# no blending.",
         "#",
         "# Method (sim/dipolophoresis/two_sphere): electric problem of two insulating spheres by twin",
@@ -101,7 +101,7 @@ def format_table(
     lines += [
         driver.nodes_line(r),
         "# Interpolation (sim/dipolophoresis/near_field.py): cubic not-a-knot spline in s = ln(r - 2).",
-        "# Beyond the last node: far-field forms (physics.md section 4). Below the first node",
+        "# Beyond the last node: far-field forms (docs/model.md#dipolophoresis). Below the first node",
         "# (gap xi < xi_0): forms fitted exactly through the nodes at xi_0, ~2 xi_0, ~4 xi_0",
         "# (the loader refits them; values here):",
         "# 'power' F = A xi^p (1 + B xi); 'log' F = C + a/L + b/L^2 with L = ln(1/xi).",

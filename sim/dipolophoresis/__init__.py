@@ -1,6 +1,6 @@
 """Dipolophoresis (induced-charge electrophoresis + dielectrophoresis) of ideally conductive spheres.
 
-Public contracts (units of ``U0 = eps a E0^2 / eta``, lengths in ``a``; ``physics.md`` §4):
+Public contracts (units of ``U0 = eps a E0^2 / eta``, lengths in ``a``; ``docs/model.md#dipolophoresis``):
 
 * :func:`periodic_pair_velocity` — velocity of a sphere due to one sphere at the origin and all its
   periodic images on the (sheared) Lees–Edwards lattice, far-field kernels, Ewald-summed.

@@ -1,6 +1,7 @@
 """Periodic far-field dipolophoresis on the sheared Lees–Edwards lattice by Ewald summation.
 
-What is summed (lengths in ``a``, ``physics.md`` §4, kernels in :mod:`sim.dipolophoresis.far_field`):
+What is summed (lengths in ``a``, ``docs/model.md#dipolophoresis``, kernels in
+:mod:`sim.dipolophoresis.far_field`):
 
 * velocities, units ``U0 = eps a E0^2/eta``:
   ``U_alpha = sum'_{beta, n} [a_S S + a_T T](x_alpha - x_beta + n) : Q``,
@@ -26,7 +27,8 @@ Derivative form. With ``Phi = 1/r`` (harmonic) and ``rho = r`` (biharmonic), the
 
 where the ``dS`` form is the physical construction (electric part ``9 ST(e d + d e)`` from the lattice
 sum of the dipole fields, hydrodynamic part ``(20/3)`` times the rate of strain of the lattice ICEP
-stresslet flow); in free space it equals the formula of ``physics.md`` §4 (``tr H = 0`` there). In the
+stresslet flow); in free space it equals the formula of ``docs/model.md#dipolophoresis`` (``tr H = 0`` there).
+In the
 periodic sum ``tr H`` is the constant ``4 pi/V`` per image set (Lorentz local field of the mean-field
 convention), and keeping it makes every Ewald part of ``dS`` exactly traceless.
 
@@ -1177,7 +1179,7 @@ def dip_far_field(
 
     References:
         Hasimoto (1959); Beenakker (1986); Essmann et al. (1995); Park & Saintillan (2010);
-        Mirfendereski & Park (2024) eqs 2.3-2.5; ``physics.md`` §4.
+        Mirfendereski & Park (2024) eqs 2.3-2.5; ``docs/model.md#dipolophoresis``.
     """
     if positions.ndim != 2 or positions.shape[1] != 3:
         raise ValueError("positions must have shape (N, 3)")

@@ -1,6 +1,7 @@
 """Free-space far-field dipolophoresis (DIP = ICEP + DEP) of a pair of ideally conductive spheres.
 
-Notation (``physics.md`` §4): lengths in units of the radius ``a``; for a pair, ``x = x_alpha - x_beta``
+Notation (``docs/model.md#pair-notation``): lengths in units of the radius ``a``; for a pair,
+``x = x_alpha - x_beta``
 (from beta to alpha), ``r = |x|``, ``xh = x/r``, ``c = e.xh`` with ``e`` the unit field direction.
 Velocities are in units of ``U0 = eps a E0^2 / eta``.
 
@@ -18,7 +19,7 @@ Kernels (method of reflections to O(r^-4); Saintillan 2008, Park & Saintillan 20
   ICEP ``F_par = -9/(4r^2) + 11/(2r^4)``, ``F_perp = 9/(8r^2) - 11/(4r^4)``, ``F_x = -11/(4r^4)``;
   DEP ``F_par = -1/r^4``, ``F_perp = 1/(2r^4)``, ``F_x = 1/(2r^4)``.
 
-Stress kernels (Batchelor sign convention; ``physics.md`` §4 "DIP stresslet"):
+Stress kernels (Batchelor sign convention; ``docs/model.md#dipolophoresis`` "DIP stresslet"):
 
 * Pair correction to the ICEP stresslet of alpha, to O(r^-3), in units ``eps a^3 E0^2``::
 
@@ -147,7 +148,7 @@ def pair_velocity(x: np.ndarray, e: np.ndarray, icep_weight: float, dep_weight: 
 def far_field_functions(r: float, mechanism_code: int) -> tuple[float, float, float]:
     """Scalar far-field functions ``(F_par, F_perp, F_x)`` of the isotropic velocity form (units ``U0``).
 
-    ``U = (F_par cos^2 th + F_perp sin^2 th) xh + F_x sin(2 th) t`` (``physics.md`` §4), with
+    ``U = (F_par cos^2 th + F_perp sin^2 th) xh + F_x sin(2 th) t`` (``docs/model.md#dipolophoresis``), with
     ICEP ``F_par = -9/(4r^2) + 11/(2r^4)``, ``F_perp = 9/(8r^2) - 11/(4r^4)``, ``F_x = -11/(4r^4)``;
     DEP ``F_par = -1/r^4``, ``F_perp = 1/(2r^4)``, ``F_x = 1/(2r^4)``; DIP is their sum.
 
@@ -193,7 +194,7 @@ def icep_pair_stresslet(x: np.ndarray, e: np.ndarray) -> np.ndarray:
         ``dS_alpha``, shape ``(3, 3)``, float64 (units ``eps a^3 E0^2``), symmetric and traceless.
 
     References:
-        ``physics.md`` §4; Kim & Karrila (1991) §2 (Faxén stresslet); Batchelor (1970).
+        ``docs/model.md#dipolophoresis``; Kim & Karrila (1991) §2 (Faxén stresslet); Batchelor (1970).
     """
     r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
     xh = x / r
@@ -226,7 +227,7 @@ def dep_pair_force(x: np.ndarray, e: np.ndarray) -> np.ndarray:
         Force on alpha, shape ``(3,)``, float64 (units ``eps a^2 E0^2``); beta feels its negative.
 
     References:
-        Saintillan (2008); ``physics.md`` §4 "DEP force virial".
+        Saintillan (2008); ``docs/model.md#dipolophoresis`` "DEP force virial".
     """
     r = math.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
     c = (e[0] * x[0] + e[1] * x[1] + e[2] * x[2]) / r
@@ -252,7 +253,7 @@ def dep_pair_virial(x: np.ndarray, e: np.ndarray) -> np.ndarray:
         Shape ``(3, 3)``, float64, symmetric (units ``eps a^3 E0^2``).
 
     References:
-        Batchelor (1970) J. Fluid Mech. 41, 545; ``physics.md`` §4.
+        Batchelor (1970) J. Fluid Mech. 41, 545; ``docs/model.md#dipolophoresis``.
     """
     f = dep_pair_force(x, e)
     out = np.empty((3, 3))

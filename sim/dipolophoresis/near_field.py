@@ -2,7 +2,7 @@
 
 For a pair of equal ideally polarisable spheres at centre distance ``r`` (units of the radius ``a``),
 ``x = x_alpha - x_beta``, ``xh = x/r``, field ``E0 e`` at angle ``th`` to ``xh`` and ``t`` the unit
-vector of ``e`` perpendicular to ``xh``, the velocity of sphere ``alpha`` is (physics.md section 4)
+vector of ``e`` perpendicular to ``xh``, the velocity of sphere ``alpha`` is (docs/model.md#dipolophoresis)
 
     U_alpha = U0 [ (F_par cos^2 th + F_perp sin^2 th) xh + F_x sin(2 th) t ],   U0 = eps a E0^2/eta,
 
@@ -172,7 +172,7 @@ R_TABLE_MAX: Final = float(TABLE.r[-1])
 
 @njit(cache=True)
 def _far_field(r: float, function: int) -> float:
-    """Far-field forms of physics.md section 4 (function index as in FUNCTION_NAMES)."""
+    """Far-field forms of docs/model.md#dipolophoresis (function index as in FUNCTION_NAMES)."""
     r2 = r * r
     r4 = r2 * r2
     if function == 0:
@@ -356,7 +356,7 @@ def pair_functions(
 ) -> tuple[float, float, float] | tuple[FloatArray, ...]:
     """Exact isolated two-sphere functions ``(F_par, F_perp, F_x)`` in units of ``U0 = eps a E0^2/eta``.
 
-    Defined as in physics.md section 4: the velocity of sphere ``alpha`` is
+    Defined as in docs/model.md#dipolophoresis: the velocity of sphere ``alpha`` is
     ``U0 [(F_par cos^2 th + F_perp sin^2 th) xh + F_x sin(2 th) t]`` with ``xh`` from ``beta`` to ``alpha``.
     No periodic images and no blending with the far field are applied.
 

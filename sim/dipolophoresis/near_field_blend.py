@@ -8,7 +8,8 @@ table): with ``x = x_alpha - x_beta``, ``xh = x/r``, ``c = e . xh`` and the diff
 
     dU_alpha = U0 w(r) [ (dF_par c^2 + dF_perp (1 - c^2)) xh + 2 dF_x c (e - c xh) ],   dU_beta = -dU_alpha,
 
-which is the isotropic form of ``physics.md`` §4 (``sin(2 th) t = 2 c (e - c xh)``). The weight ``w`` is 1
+which is the isotropic form of ``docs/model.md#dipolophoresis`` (``sin(2 th) t = 2 c (e - c xh)``).
+The weight ``w`` is 1
 for ``r <= r_c - width`` and falls to 0 at ``r_c`` with a C1 smoothstep, so the velocity has no jump when a
 pair crosses ``r_c``. Only the nearest image of each pair is corrected (``r_c < L/2``); the far field of
 all other images is already in the Ewald sum, and their near-field corrections are ``O(r^-5)`` at
@@ -20,7 +21,8 @@ Accuracy: what is left out is ``w(r) dF(r)`` for ``r > r_c - width`` plus ``dF``
 follows the paper (§2.1: corrections "typically for ``|R| < 4a``"); a larger ``r_c`` (up to ``L/2``)
 reduces the residual at the price of a longer pair list.
 
-Stresses (``physics.md`` §4; tables of :mod:`sim.dipolophoresis.near_field_stress`, same method): for
+Stresses (``docs/model.md#dipolophoresis``; tables of :mod:`sim.dipolophoresis.near_field_stress`,
+same method): for
 each pair closer than ``r_c``, with the same weight ``w(r)``,
 
 * ICEP: both spheres' stresslets change by ``w (dS^exact - dS^far)``, ``dS^far`` the O(r^-3) pair
@@ -207,7 +209,7 @@ def add_near_field_corrections(
             velocity[j, m] -= du
         # stresses; table units pi eps a^3 E0^2 (stresslets) and pi eps a^2 E0^2 (forces)
         scale = math.pi * w / volume
-        if want_icep:  # exact minus physics.md's far-field pair correction (already in the Ewald sum)
+        if want_icep:  # exact minus the far-field pair correction (in the Ewald sum; docs/model.md)
             inv_r3 = 1.0 / (r * r * r)
             far1, far2, far3, far4 = ICEP_PAIR_FAR_FIELD
             add_basis(

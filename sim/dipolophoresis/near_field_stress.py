@@ -12,8 +12,8 @@ superposition: :mod:`sim.dipolophoresis.two_sphere.stresslet`). Two mechanisms:
 
 * ``icep``: ``(f1, f2, f3, f4)`` of the ICEP pair correction ``dS = S_alpha - S0`` of ONE sphere
   (``S0 = 9 (ee - I/3)``; force- and torque-free spheres with the induced-charge slip; ``S_beta = S_alpha``).
-  Far field (physics.md section 4, confirmed by the exact solution): ``(9, -36, -45/2, 225/2)/r^3``, exact
-  minus far field ``~ -(57/2)(1, -5, -5/2, 35/2)/r^5``.
+  Far field (docs/model.md#dipolophoresis, confirmed by the exact solution): ``(9, -36, -45/2, 225/2)/r^3``,
+  exact minus far field ``~ -(57/2)(1, -5, -5/2, 35/2)/r^5``.
 * ``dep``: ``(g1, g2, g3, g4)`` of the stresslet of ONE sphere moving rigidly under the exact Maxwell forces
   ``+-F`` (``g1 = 0``: no ``cos 2 phi`` forcing); far field ``(0, 8/r^8, 15/(2 r^6), -45/(2 r^6)``.
 * ``dip``: the sum.
@@ -23,12 +23,13 @@ and the exact DEP force on alpha (units ``pi eps a^2 E0^2``; beta feels ``-F_alp
     F_alpha = (F_par c^2 + F_perp (1 - c^2)) xh + F_x sin(2 th) t
             = (F_par c^2 + F_perp (1 - c^2)) xh + 2 F_x c (e - c xh),
 
-far field ``(F_par, F_perp, F_x) = (-6, 3, 3)/r^4`` (``F = -3 W/r^4``, physics.md section 4).
+far field ``(F_par, F_perp, F_x) = (-6, 3, 3)/r^4`` (``F = -3 W/r^4``, docs/model.md#dipolophoresis).
 
-Bulk stress of a pair (what the time step needs; physics.md sections 4 and 6). The ICEP part of ``n <S^d>``
-gets ``S0`` per sphere plus ``dS`` for each sphere of every pair; the DEP part is the pair virial
-``-x F_alpha`` (symmetrised) plus the DEP-induced stresslets of both spheres. The far field (Ewald) already
-holds physics.md's O(r^-3) ``dS`` and the virial of ``-3 W/r^4``; for pairs with ``r < r_c`` add
+Bulk stress of a pair (what the time step needs; docs/model.md#dip-stress and #bulk-stress). The ICEP part
+of ``n <S^d>`` gets ``S0`` per sphere plus ``dS`` for each sphere of every pair; the DEP part is the pair
+virial ``-x F_alpha`` (symmetrised) plus the DEP-induced stresslets of both spheres. The far field (Ewald)
+already holds the O(r^-3) ``dS`` of docs/model.md#icep-pair-stresslet and the virial of ``-3 W/r^4``; for
+pairs with ``r < r_c`` add
 ``(exact - far field)`` for both spheres (:func:`pair_stress_corrections`) and the virial correction
 ``-sym(x (F_exact - F_far))``. The DEP-induced stresslet has no far-field counterpart (O(r^-6)) and is added
 whole. What is exact and what is approximated: the two-sphere values are exact (to the table accuracy below)
@@ -248,7 +249,7 @@ def dep_force_kernel(
 
 
 ICEP_PAIR_FAR_FIELD: Final = (9.0, -36.0, -22.5, 112.5)
-"""``r^3 (f1, f2, f3, f4)`` of physics.md's far-field ICEP pair correction
+"""``r^3 (f1, f2, f3, f4)`` of docs/model.md#dip-far-field's far-field ICEP pair correction
 ``dS = r^-3 [9 ee - 36 c (e xh + xh e) + (225/2 c^2 - 45/2) xh xh + (9/2 - 27/2 c^2) I]`` in this basis."""
 
 
@@ -326,7 +327,8 @@ def pair_stress_corrections(
     """Exact minus far field, for the near-field correction of the bulk stress (compiled).
 
     Same arguments and units as :func:`pair_stress_tensors`. Returns ``(dS_exact - dS_far, S_dep, F_exact -
-    F_far)`` with physics.md's far fields ``dS_far = r^-3 [9 T1 - 36 T2 - (45/2) T3 + (225/2) T4]`` and
+    F_far)`` with docs/model.md#dip-far-field's far fields ``dS_far = r^-3 [9 T1 - 36 T2 - (45/2) T3 +
+    (225/2) T4]`` and
     ``F_far = -3 W/r^4`` (``W = (5c^2 - 1) xh - 2 c e``); ``S_dep`` is returned whole (no far-field term).
     Multiply stresslets by ``pi eps a^3 E0^2`` and forces by ``pi eps a^2 E0^2``.
     """

@@ -1,6 +1,7 @@
 """Periodic far-field pair velocity: one source sphere and all its Lees–Edwards images.
 
-The public contract used by other tools (``physics.md`` §4 reference values are computed with it).
+The public contract used by other tools (the reference values of ``docs/model.md#ewald-reference-values``
+are computed with it).
 
 References:
     Hasimoto (1959) J. Fluid Mech. 5, 317; Beenakker (1986) J. Chem. Phys. 85, 1581;

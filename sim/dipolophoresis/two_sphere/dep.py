@@ -93,7 +93,7 @@ def dep_functions(
         stokes_axisymmetric, stokes_transverse: Stokes systems for ``m = 0`` and ``m = 1``.
 
     Returns:
-        ``(F_par, F_perp, F_x)`` as defined in ``physics.md`` section 4.
+        ``(F_par, F_perp, F_x)`` as defined in ``docs/model.md#dipolophoresis``.
     """
     if stokes_axisymmetric.n_spheres == 1:
         return 0.0, 0.0, 0.0

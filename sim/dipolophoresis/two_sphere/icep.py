@@ -22,7 +22,7 @@ transverse one; ``zeta = cos(alpha) Z_0 + sin(alpha) Z_1 cos(varphi)``. The slip
   ``u_varphi = -Z_0 Phi_1/sin(theta)`` (amplitudes of ``cos`` and ``sin varphi``) -> ``F_x``.
 
 Sphere 2's velocity is then ``U = (F_par cos^2 alpha + F_perp sin^2 alpha) z_hat + F_x sin(2 alpha) x_hat``,
-i.e. the functions of ``physics.md`` section 4 with ``alpha`` = sphere 2 and ``xh = z_hat``:
+i.e. the functions of ``docs/model.md#dipolophoresis`` with ``alpha`` = sphere 2 and ``xh = z_hat``:
 ``F_par`` is ``U_z`` for ``alpha = 0``, ``F_perp`` is ``U_z`` for ``alpha = pi/2`` and ``F_x`` is ``U_x``
 for ``alpha = pi/4``. Sphere 1 moves with ``-U`` (symmetry of equal spheres).
 
@@ -105,7 +105,7 @@ def icep_functions(
         stokes_axisymmetric, stokes_transverse: Stokes systems for ``m = 0`` and ``m = 1``.
 
     Returns:
-        ``(F_par, F_perp, F_x)`` as defined in ``physics.md`` section 4.
+        ``(F_par, F_perp, F_x)`` as defined in ``docs/model.md#dipolophoresis``.
     """
     slip_par, slip_perp, slip_x = icep_slips(axial, transverse, stokes_axisymmetric, stokes_transverse)
     ns = stokes_axisymmetric.n_spheres

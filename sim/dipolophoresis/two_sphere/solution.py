@@ -1,7 +1,7 @@
 """The six exact two-sphere dipolophoresis functions (ICEP and DEP) at one separation.
 
 Combines :mod:`.electric` (insulating spheres, ``m = 0`` and ``m = 1``), :mod:`.icep` and :mod:`.dep`
-(Lamb's solution about both centres, :mod:`.stokes`) into the pair functions of ``physics.md``
+(Lamb's solution about both centres, :mod:`.stokes`) into the pair functions of ``docs/model.md``
 section 4: the velocity of sphere ``alpha`` due to sphere ``beta`` at ``x = x_alpha - x_beta``,
 ``xh = x/r``, field ``E0 e`` at angle ``th`` to ``xh``,
 

@@ -10,7 +10,7 @@ velocity ``u`` (rigid motion plus slip) is
     S = int_S [ sym(x (sigma . n)) - (1/3) I x . sigma . n - eta (u n + n u) ] dS,
 
 its contribution to the bulk particle stress ``n <S>`` (Batchelor 1970; Kim & Karrila 1991, chapter 2).
-The isolated ICEP sphere carries ``S0 = 9 (ee - I/3)`` (physics.md section 4; it is the
+The isolated ICEP sphere carries ``S0 = 9 (ee - I/3)`` (docs/model.md#dipolophoresis; it is the
 squirmer stresslet ``4 pi B2 (ee - I/3)`` with ``B2 = 9/4``, Ishikawa et al. 2006).
 
 Two mechanisms:
@@ -76,7 +76,7 @@ m = 1) the components of ``S = cos^2(al) A + sin^2(al) B + sin(2 al) X``,
 
 a unique inverse, so the four tensors are independent and complete.
 
-Far field (physics.md section 4; confirmed here by the exact solution): the ICEP pair correction is
+Far field (docs/model.md#dipolophoresis; confirmed here by the exact solution): the ICEP pair correction is
 ``r^-3 [9 ee - 36 c (e xh + xh e) + (225/2 c^2 - 45/2) xh xh + (9/2 - 27/2 c^2) I]``, i.e.
 ``(f1, f2, f3, f4) = (9, -36, -45/2, 225/2) / r^3``; ``r^3 f`` -> these to 1e-3 at r = 160 and the residual
 is ``O(r^-5)`` (fitted slope -5.0, no ``r^-4`` term), ``~ -(57/2)(1, -5, -5/2, 35/2)/r^5`` (fitted at
@@ -90,7 +90,7 @@ two-sphere Stokes flows of all three azimuthal orders, hence each sphere's full 
 force and the rigid-body stresslets under it. Approximated in the suspension stress built from them:
 pairwise additivity (three-body corrections neglected, as for the velocities), the blend to the far field
 at the cut-off, the near-contact extrapolation below ``r - 2 = 5e-4``; and the DEP contribution to the
-bulk stress is modelled, as in physics.md and the paper, by the pair virial ``-x F`` plus these induced
+bulk stress is modelled, as in docs/model.md and the paper, by the pair virial ``-x F`` plus these induced
 stresslets (the first moment of the Maxwell traction beyond the virial, e.g. the isolated-sphere
 ``(3/5) pi eps a^3 E0^2 (ee - I/3)``, is not included).
 
@@ -163,10 +163,10 @@ __all__ = [
 ]
 
 ISOLATED_STRESSLET = 9.0
-"""``S0 = 9 (ee - I/3)`` in units ``pi eps a^3 E0^2`` (physics.md section 4)."""
+"""``S0 = 9 (ee - I/3)`` in units ``pi eps a^3 E0^2`` (docs/model.md#dipolophoresis)."""
 
 ICEP_FAR_FIELD_COEFFICIENTS = (9.0, -36.0, -22.5, 112.5)
-"""``r^3 (f1, f2, f3, f4)`` of physics.md's O(r^-3) ICEP pair correction."""
+"""``r^3 (f1, f2, f3, f4)`` of docs/model.md#icep-pair-stresslet's O(r^-3) ICEP pair correction."""
 
 
 # ------------------------------------------------------------------------------------------------

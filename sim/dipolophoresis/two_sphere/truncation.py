@@ -1,7 +1,7 @@
 """Truncation degree of the twin multipole expansions as a function of the gap.
 
 Near contact the expansions about the two centres converge like ``exp(-k (L - 14) sqrt(r/a - 2))``
-(``k ~ 1.5``), so the degree must grow like ``(r/a - 2)^(-1/2)`` (Jeffrey & Onishi 1984; physics.md
+(``k ~ 1.5``), so the degree must grow like ``(r/a - 2)^(-1/2)`` (Jeffrey & Onishi 1984; docs/model.md
 section 4). With ``L = ceil(14 + c/sqrt(r - 2))`` the pair functions change by less than 3e-6 U0 from
 ``c = 8`` to ``c = 10`` at every separation ``r >= 2.0001 a``, and by about 20x less from ``c = 10`` to
 ``c = 12`` (``scripts/generate_near_field_table.py --convergence``).
