@@ -227,6 +227,30 @@ def test_a_failed_point_gives_exit_status_1(tmp_path: Path, capsys, monkeypatch)
     assert (out / "phi0.300_N40_Mninf_seed1" / "result.json").exists()
 
 
+def test_ctrl_c_with_one_worker_exits_130_and_leaves_the_point_pending(
+    tmp_path: Path, capsys, monkeypatch
+) -> None:
+    """Issue 23: Ctrl-C during ``sim sweep --workers 1`` recorded the running point as failed, because
+    numba turned the interrupt inside a kernel into a ``SystemError``. A run now defers Ctrl-C to its next
+    checkpoint and raises ``KeyboardInterrupt`` there (sim.run; a real SIGINT is tested in test_cli); the
+    sweep must pass that up: exit 130, the point still pending (no error.json), the finished one kept.
+    (A real SIGINT to ``sim sweep --workers 1`` gave exactly this on 2026-12-03.)"""
+    original = sim.run.run_simulation
+
+    def interrupted_at_phi_04(config: SimulationConfig, *args: Any, **kwargs: Any) -> dict[str, Any]:
+        if config.volume_fraction == 0.4:
+            raise KeyboardInterrupt
+        return original(config, *args, **kwargs)
+
+    monkeypatch.setattr(sim.run, "run_simulation", interrupted_at_phi_04)
+    out = tmp_path / "sweep"
+    status, _, err = sweep_cli(["--phi", "0.3,0.4", "--workers", "1", "--out", str(out), *TINY], capsys)
+    assert status == 130
+    assert "interrupted; rerun the same command to resume" in err and "Traceback" not in err
+    assert not (out / "phi0.400_N40_Mninf_seed1" / ERROR_FILE).exists()
+    assert (out / "phi0.300_N40_Mninf_seed1" / "result.json").exists()
+
+
 def test_process_exit_status() -> None:
     """The real entry point exits 2 on a bad list value, naming the flag."""
     proc = subprocess.run(
