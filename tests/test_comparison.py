@@ -79,13 +79,19 @@ def test_action_variation_by_hand() -> None:
 
 
 def test_return_gap_is_paired_per_seed() -> None:
-    # Seeds' returns -130, -128, -132 against a constant's -133: gaps 3, 5, 1; mean 3, sample sd 2,
-    # Student-t 95% half-width t(0.975, 2) * 2 / sqrt(3) = 4.303 * 1.1547 = 4.968: [-1.97, 7.97].
+    # Seeds' returns -130, -128, -132 against a constant's -133: gaps 3, 5, 1, mean 3. The percentile
+    # bootstrap of the mean of 3 values resamples them with replacement: each extreme mean (all three
+    # draws the smallest, 1, or the largest, 5) has probability 1/27 = 3.7% > 2.5%, so the 95% interval is
+    # exactly [1, 5] (a bootstrap cannot reach beyond the observed gaps; a t-interval would give
+    # [-1.97, 7.97]: with 3 seeds the bootstrap is the narrower, docs/agents.md says so).
     gap = return_gap([-130.0, -128.0, -132.0], -133.0)
     assert gap["return_gap"] == pytest.approx(3.0)
-    assert gap["return_gap_low"] == pytest.approx(3.0 - 4.9683, abs=1e-3)
-    assert gap["return_gap_high"] == pytest.approx(3.0 + 4.9683, abs=1e-3)
-    assert gap["seeds_above"] == 3 and gap["return_verdict"].startswith("same")
+    assert gap["return_gap_low"] == pytest.approx(1.0, abs=1e-12)
+    assert gap["return_gap_high"] == pytest.approx(5.0, abs=1e-12)
+    assert gap["seeds_above"] == 3 and gap["return_verdict"] == "higher return"
+    same = return_gap([-135.0, -130.0, -129.0], -133.0)  # gaps -2, 3, 4: the interval reaches -2
+    assert same["return_gap_low"] == pytest.approx(-2.0, abs=1e-12)
+    assert same["return_verdict"].startswith("same") and same["seeds_above"] == 2
     assert return_gap([-120.0, -121.0, -119.0], -133.0)["return_verdict"] == "higher return"
     assert return_gap([-150.0, -151.0, -149.0], -133.0)["return_verdict"] == "lower return"
     one = return_gap([-140.0, math.nan], -133.0)  # a failed seed is left out
