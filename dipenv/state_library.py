@@ -26,6 +26,7 @@ so concurrent workers at worst repeat work.
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import importlib.util
@@ -90,8 +91,35 @@ def cache_root() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "dipenv"
 
 
+def _normalised_source(path: Path) -> bytes:
+    """What of a source file can shape a trajectory: for Python, its syntax tree without docstrings and
+    other bare string statements (comments and layout never reach the tree); for a data table, its lines
+    that are not ``#`` comments. So rewording a docstring or a table's header keeps the digest. (The tree's
+    printed form belongs to the Python version: another minor version may give another key, and then the
+    states are generated again, never wrongly reused.)"""
+    text = path.read_text()
+    if path.suffix != ".py":
+        return "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#")).encode()
+    tree = ast.parse(text)
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list):
+            kept = [
+                statement
+                for statement in body
+                if not (
+                    isinstance(statement, ast.Expr)
+                    and isinstance(statement.value, ast.Constant)
+                    and isinstance(statement.value.value, str)
+                )
+            ]
+            node.body = kept or [ast.Pass()]  # type: ignore[attr-defined]
+    return ast.dump(tree, include_attributes=False).encode()
+
+
 def source_digest(root: Path, exclude: frozenset[str] = frozenset()) -> str:
-    """SHA-256 (16 hex digits) of the relative paths and contents of the ``.py`` files and data tables
+    """SHA-256 (16 hex digits) of the relative paths and normalised contents (:func:`_normalised_source`:
+    code without docstrings, tables without comments) of the ``.py`` files and data tables
     (``*/tables/*.txt``) under ``root``, less the relative paths in ``exclude`` (an entry ending in ``/``
 excludes everything under that folder)."""
     digest = hashlib.sha256()
@@ -102,7 +130,7 @@ excludes everything under that folder)."""
         ):
             continue
         digest.update(relative.encode())
-        digest.update(path.read_bytes())
+        digest.update(_normalised_source(path))
     return digest.hexdigest()[:16]
 
 
