@@ -84,8 +84,9 @@ def read_baseline(folder: Path) -> tuple[dict[str, Any], list[Path]]:
         pareto = read_json(path)
     except (OSError, ValueError) as error:
         usage_error(
-            PROG, f"--baseline {folder}: {path} cannot be read ({type(error).__name__}: {error}); is it an "
-            "agents.open_loop --out that has finished?"
+            PROG,
+            f"--baseline {folder}: {path} cannot be read ({type(error).__name__}: {error}); is it an "
+            "agents.open_loop --out that has finished?",
         )
     if not isinstance(pareto, dict) or any(k not in pareto for k in ("env_id", "env_kwargs", "split")):
         usage_error(PROG, f"--baseline {folder}: {path} is not an agents.open_loop pareto.json")
@@ -423,23 +424,40 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
 
 
 def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
-    """Field (Mn; off drawn above the top) and eta_r against strain for one start state."""
+    """Field (Mn; off drawn above the top) and eta_r against strain for one start state; for the
+    thickening-control environments (traces with a shear rate) against time, with the shear rate on top
+    and the cap drawn on the eta_r panel."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (ax_mn, ax_eta) = plt.subplots(2, 1, figsize=(6.5, 5), sharex=True)
+    thickening = bool(curves) and all(trace.get("shear_rate") for _, trace in curves)
+    rows = 3 if thickening else 2
+    fig, axes = plt.subplots(rows, 1, figsize=(6.5, 2.5 * rows), sharex=True)
+    ax_rate = axes[0] if thickening else None
+    ax_mn, ax_eta = axes[-2], axes[-1]
     for name, trace in curves:
-        strain = np.asarray(trace["strain"])
+        x = np.asarray(trace["time"] if thickening else trace["strain"])
         mn = np.array([float(m) for m in trace["mason_number"]])
         shown = np.where(np.isfinite(mn), mn, 100.0)
-        ax_mn.step(strain, shown, where="pre", label=name)
-        ax_eta.plot(strain, trace["eta_r"], "-", label=name)
+        ax_mn.step(x, shown, where="pre", label=name)
+        ax_eta.plot(x, trace["eta_r"], "-", label=name)
+    if ax_rate is not None:
+        _, first = curves[0]
+        ax_rate.step(first["time"], first["shear_rate"], where="pre", color="0.3")
+        ax_rate.set_yscale("log")
+        ax_rate.set_ylabel("shear rate (gammadot_ref)")
+        cap = float(first.get("eta_cap", math.nan))
+        if math.isfinite(cap):
+            ax_eta.axhline(cap, color="0.3", ls="--", lw=1, label=f"eta_cap = {cap:g}")
+            ax_eta.legend(handles=ax_eta.get_lines()[-1:], fontsize=7)
     ax_mn.set_yscale("log")
-    ax_mn.set_ylabel("Mn (100 = off)")
+    ax_mn.set_ylabel("Mn_ref (100 = off)" if thickening else "Mn (100 = off)")
     ax_eta.set_ylabel("eta_r (interval average)")
-    ax_eta.set_xlabel("strain since the episode start")
+    ax_eta.set_xlabel(
+        "time since the episode start (1/gammadot_ref)" if thickening else "strain since the episode start"
+    )
     ax_mn.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
