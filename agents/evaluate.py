@@ -464,6 +464,68 @@ def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
     plt.close(fig)
 
 
+def plot_thickening_front(constants: list[dict[str, Any]], others: list[dict[str, Any]], out: Path) -> None:
+    """``thickening_front.png``: the excess ``eta_r`` over the cap against the field energy (whole
+    episodes) of every constant field, their front (no other constant has both less), and the controllers
+    and policies placed on it, with their 95% intervals. Also ``thickening_front.json``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def point(row: dict[str, Any]) -> dict[str, Any]:
+        return {
+            "name": row["name"],
+            "energy": row["energy_mean"]["mean"],
+            "excess": row["excess_viscosity"]["mean"],
+            "excess_low": row["excess_viscosity"]["ci_low"],
+            "excess_high": row["excess_viscosity"]["ci_high"],
+        }
+
+    fixed, placed = [point(r) for r in constants], [point(r) for r in others]
+    for p in fixed:
+        p["front"] = not any(
+            o["energy"] <= p["energy"]
+            and o["excess"] <= p["excess"]
+            and o != p
+            and (o["energy"] < p["energy"] or o["excess"] < p["excess"])
+            for o in fixed
+        )
+    write_json(out / "thickening_front.json", {"constant_fields": fixed, "controllers_and_policies": placed})
+    floor = min([p["energy"] for p in fixed + placed if p["energy"] > 0] + [1e-2]) / 3
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    for group, style, colour in ((fixed, "o", "0.5"), (placed, "s", None)):
+        for p in group:
+            low = p["excess"] - p["excess_low"] if math.isfinite(p["excess_low"]) else 0.0
+            high = p["excess_high"] - p["excess"] if math.isfinite(p["excess_high"]) else 0.0
+            ax.errorbar(
+                [max(p["energy"], floor)],
+                [p["excess"]],
+                yerr=[[low], [high]],
+                fmt=style,
+                color=colour,
+                label=p["name"] if group is placed else None,
+            )
+            if group is fixed:
+                ax.annotate(
+                    p["name"],
+                    (max(p["energy"], floor), p["excess"]),
+                    fontsize=6,
+                    xytext=(3, 3),
+                    textcoords="offset points",
+                )
+    front = sorted((max(p["energy"], floor), p["excess"]) for p in fixed if p["front"])
+    if front:
+        ax.plot(*zip(*front, strict=True), "-", color="0.2", label="front of the constant fields")
+    ax.set_xscale("log")
+    ax.set_xlabel(f"field energy <eps E0^2> (eta gammadot_ref; off plotted at {floor:.2g})")
+    ax.set_ylabel("excess eta_r over the cap, time average")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "thickening_front.png", dpi=120)
+    plt.close(fig)
+
+
 def training_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
     """SB3's ``rollout/ep_rew_mean`` (mean return of the last 100 training episodes, sampled actions)
     against environment steps, from the run's TensorBoard logs (all of them: a resumed run has several)."""
@@ -695,6 +757,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             if math.isnan(p[k]):
                 p[k] = p["eta"]
     plot_pareto(summary, args.out / "pareto.png", markers)
+    if all("excess_viscosity" in r for r in rows):
+        constants = [aggregate_baseline(p["label"], p, indices) for p in points]
+        plot_thickening_front(constants, rows[len(baseline_rows) - len(controllers) :], args.out)
     first = indices[0]
     curves = []
     for name, record in baselines:

@@ -209,6 +209,11 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
     assert row["excess_viscosity"]["mean"] == pytest.approx(expected, rel=1e-12)
     assert "time above cap" in (out / "table.md").read_text()
     assert (out / "traces.png").exists()
+    front = json.loads((out / "thickening_front.json").read_text())
+    assert [p["name"] for p in front["constant_fields"]] == ["Mn1", "off"]  # the baseline's points
+    assert [p["name"] for p in front["controllers_and_policies"]] == [row["name"]]
+    assert front["controllers_and_policies"][0]["excess"] == pytest.approx(expected, rel=1e-12)
+    assert (out / "thickening_front.png").exists()
 
     other = tmp_path / "ff_validation"
     controllers.main(
