@@ -5,6 +5,7 @@ not depend on which Lees–Edwards image represents a particle; the onset rule o
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -121,7 +122,7 @@ def test_directions() -> None:
     assert nearest_layer_axis((0.2, -0.9, 0.3)) == 1 and nearest_layer_axis((0.0, 1.0, 0.0)) == 1
 
 
-def test_onset_needs_a_plateau_above_ten_and_five_samples_above_half_of_it() -> None:
+def test_onset_needs_a_plateau_above_ten_a_gain_of_three_and_five_samples_above_half_of_it() -> None:
     """Hand-made series: a single excursion above half the plateau (index 5) does not count, five in a
     row (from 20) do; a plateau with ``S_peak`` below 10 is not layered."""
     psi = np.full(60, 0.02)
@@ -133,6 +134,22 @@ def test_onset_needs_a_plateau_above_ten_and_five_samples_above_half_of_it() -> 
     assert layer_onset_index(psi, 0.5, 19) is None  # 0.5 * 19 < 10
     assert layer_onset_index(psi[:3], 0.5, 64) is None
     assert layer_onset_index(psi, math.nan, 64) is None
+    start = psi.copy()
+    start[:5] = 0.2  # ordered from the start: the plateau 0.5 is 2.5 times the first samples' 0.2
+    assert layer_onset_index(start, 0.5, 64) is None
+    start[:5] = 0.16  # 0.5 >= 3 * 0.16: grown during the run; samples 0-4 are below half the plateau
+    assert layer_onset_index(start, 0.5, 64) == 23
+
+
+def test_onset_of_the_n500_run_whose_peak_was_there_from_the_start() -> None:
+    """The box-size study's N = 500 run (phi 0.45, Mn 1, seed 1; results/box_size): psi 0.024 at strain 0
+    (S_peak 12 at the liquid-peak harmonic m = 9, spacing 1.86 a) and a plateau of 0.043 (S 21). It
+    passes the S >= 10 test but gained a factor of under 2: not layered, so no onset (was strain 0)."""
+    path = Path(__file__).parents[1] / "results/box_size/phi0.45_large/phi0.450_N500_Mn1_seed1/layering.csv"
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    plateau = float(table[table[:, 1] >= 20.0, 2].mean())
+    assert plateau * 500 >= 10.0 and plateau == pytest.approx(0.0429, abs=5e-4)
+    assert layer_onset_index(table[:, 2], plateau, 500) is None
 
 
 def test_series_summary_and_checkpoint_arrays() -> None:
