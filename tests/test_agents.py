@@ -65,6 +65,33 @@ def test_hyperparameters_for_every_id() -> None:
     assert train.parse_overrides(["policy_kwargs={net_arch: [8]}"]) == {"policy_kwargs": {"net_arch": [8]}}
 
 
+def test_training_returns_round_trip_through_csv(tmp_path: Path) -> None:
+    """A resumed run's TensorBoard logs (two, overlapping at one step, with another tag beside SB3's
+    rollout/ep_rew_mean) -> training_returns.csv -> the same arrays once the logs are gone."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "seed0"
+    parts = {"run_1": {512: -348.5259, 1024: -330.51, 1536: -1.0}, "run_2": {1536: -320.66, 2048: -299.125}}
+    for name, points in parts.items():
+        writer = SummaryWriter(log_dir=str(run / "tb" / name))
+        for step, value in points.items():
+            writer.add_scalar("rollout/ep_rew_mean", value, step)
+            writer.add_scalar("train/loss", 7.0, step)
+        writer.close()
+    steps, returns = evaluate.training_returns(run)  # from the logs
+    assert steps.tolist() == [512, 1024, 1536, 2048]  # the later log wins at 1536
+    assert returns == pytest.approx([-348.5259, -330.51, -320.66, -299.125], rel=1e-6)  # float32 in the logs
+    path = evaluate.write_training_returns(run)
+    assert path == run / "training_returns.csv"
+    assert path.read_text().splitlines()[:2] == ["steps,ep_rew_mean", f"512,{float(returns[0])!r}"]
+    shutil.rmtree(run / "tb")
+    steps_csv, returns_csv = evaluate.training_returns(run)  # from the CSV alone
+    assert np.array_equal(steps_csv, steps) and np.array_equal(returns_csv, returns)
+    assert steps_csv.dtype == steps.dtype and returns_csv.dtype == returns.dtype
+    with pytest.raises(FileNotFoundError, match="no TensorBoard logs"):
+        evaluate.write_training_returns(run)
+
+
 @pytest.mark.parametrize(
     ("module", "arguments", "named"),
     [
