@@ -33,7 +33,8 @@ constant-field front, its return against the best constant field's (paired per s
 probability of improvement over the states) and its action variation (:mod:`agents.comparison`).
 ``learning.png``: each run's
 return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
-and in its training episodes with sampled actions (TensorBoard), with the constant fields' returns.
+and in its training episodes with sampled actions (TensorBoard logs, or the
+``training_returns.csv`` that replaces them in a committed run), with the constant fields' returns.
 """
 
 from __future__ import annotations
@@ -526,9 +527,15 @@ def plot_thickening_front(constants: list[dict[str, Any]], others: list[dict[str
     plt.close(fig)
 
 
-def training_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
-    """SB3's ``rollout/ep_rew_mean`` (mean return of the last 100 training episodes, sampled actions)
-    against environment steps, from the run's TensorBoard logs (all of them: a resumed run has several)."""
+TRAINING_RETURNS_CSV = "training_returns.csv"
+"""A run's learning curve as text (columns ``steps,ep_rew_mean``; :func:`write_training_returns`): what a
+committed run keeps instead of its TensorBoard logs."""
+
+
+def tensorboard_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
+    """SB3's ``rollout/ep_rew_mean`` against environment steps from the run's TensorBoard logs
+    ``run/tb/*/events.out.tfevents.*`` (all of them, in name order: a resumed run has several, and a later
+    log's value at a step replaces an earlier one's)."""
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
 
     points: dict[int, float] = {}
@@ -539,6 +546,34 @@ def training_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
             points.update({e.step: e.value for e in accumulator.Scalars("rollout/ep_rew_mean")})
     steps = np.array(sorted(points), dtype=float)
     return steps, np.array([points[int(s)] for s in steps])
+
+
+def training_returns(run: Path) -> tuple[np.ndarray, np.ndarray]:
+    """SB3's ``rollout/ep_rew_mean`` (mean return of the last 100 training episodes, sampled actions)
+    against environment steps: from ``run/training_returns.csv`` where it exists (a committed run), else
+    from the run's TensorBoard logs (:func:`tensorboard_returns`)."""
+    table = run / TRAINING_RETURNS_CSV
+    if not table.exists():
+        return tensorboard_returns(run)
+    lines = table.read_text().splitlines()
+    if not lines or lines[0].strip() != "steps,ep_rew_mean":
+        raise ValueError(f"{table}: expected the header 'steps,ep_rew_mean'")
+    rows = [line.split(",") for line in lines[1:] if line.strip()]
+    return np.array([float(s) for s, _ in rows]), np.array([float(r) for _, r in rows])
+
+
+def write_training_returns(run: Path, path: Path | None = None) -> Path:
+    """Write the run's TensorBoard learning curve (:func:`tensorboard_returns`) as ``steps,ep_rew_mean``
+    text to ``path`` (default ``run/training_returns.csv``), each value written exactly (``repr``), so
+    that :func:`training_returns` reads back the same arrays; returns the path. Raises
+    ``FileNotFoundError`` if the run has no TensorBoard logs."""
+    if not any(run.glob("tb/*/events.out.tfevents.*")):
+        raise FileNotFoundError(f"{run}: no TensorBoard logs (tb/*/events.out.tfevents.*)")
+    steps, returns = tensorboard_returns(run)
+    path = run / TRAINING_RETURNS_CSV if path is None else path
+    lines = ["steps,ep_rew_mean", *(f"{int(s)},{float(r)!r}" for s, r in zip(steps, returns, strict=True))]
+    path.write_text("\n".join(lines) + "\n")
+    return path
 
 
 def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, float]], path: Path) -> None:

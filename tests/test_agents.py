@@ -7,6 +7,7 @@ import importlib.util
 import json
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -65,6 +66,33 @@ def test_hyperparameters_for_every_id() -> None:
     assert train.parse_overrides(["policy_kwargs={net_arch: [8]}"]) == {"policy_kwargs": {"net_arch": [8]}}
 
 
+def test_training_returns_round_trip_through_csv(tmp_path: Path) -> None:
+    """A resumed run's TensorBoard logs (two, overlapping at one step, with another tag beside SB3's
+    rollout/ep_rew_mean) -> training_returns.csv -> the same arrays once the logs are gone."""
+    from torch.utils.tensorboard import SummaryWriter
+
+    run = tmp_path / "seed0"
+    parts = {"run_1": {512: -348.5259, 1024: -330.51, 1536: -1.0}, "run_2": {1536: -320.66, 2048: -299.125}}
+    for name, points in parts.items():
+        writer = SummaryWriter(log_dir=str(run / "tb" / name))
+        for step, value in points.items():
+            writer.add_scalar("rollout/ep_rew_mean", value, step)
+            writer.add_scalar("train/loss", 7.0, step)
+        writer.close()
+    steps, returns = evaluate.training_returns(run)  # from the logs
+    assert steps.tolist() == [512, 1024, 1536, 2048]  # the later log wins at 1536
+    assert returns == pytest.approx([-348.5259, -330.51, -320.66, -299.125], rel=1e-6)  # float32 in the logs
+    path = evaluate.write_training_returns(run)
+    assert path == run / "training_returns.csv"
+    assert path.read_text().splitlines()[:2] == ["steps,ep_rew_mean", f"512,{float(returns[0])!r}"]
+    shutil.rmtree(run / "tb")
+    steps_csv, returns_csv = evaluate.training_returns(run)  # from the CSV alone
+    assert np.array_equal(steps_csv, steps) and np.array_equal(returns_csv, returns)
+    assert steps_csv.dtype == steps.dtype and returns_csv.dtype == returns.dtype
+    with pytest.raises(FileNotFoundError, match="no TensorBoard logs"):
+        evaluate.write_training_returns(run)
+
+
 @pytest.mark.parametrize(
     ("module", "arguments", "named"),
     [
@@ -90,6 +118,61 @@ def test_bad_command_line_input_exits_2_naming_the_argument(
     message = capsys.readouterr().err
     assert f"python -m agents.{module.__name__.split('.')[-1]}: error: {named}" in message  # type: ignore[attr-defined]
     assert not (tmp_path / "out").exists() or not any((tmp_path / "out").iterdir())
+
+
+def _recomputed_verdict(out: Path, baseline: Path, runs: list[str]) -> dict[str, Any]:
+    """A policy's verdict numbers recomputed from the raw data, as agents/comparison.py defines them: the
+    policy's episodes as played (``out/runs/<run>.json``), the baseline's Pareto points (``pareto.json``)
+    and its per-interval traces (``points/*.json``, scored here by hand for the env's default reward:
+    their stored returns may be for another). The front's eta_r at the policy's energy: its Pareto points
+    joined linearly, flat beyond the ends. The return gap: over seeds, the mean of (the seed's mean return
+    minus the best constant's mean return on the same states)."""
+    reward = make_env(ENV).unwrapped.reward_function
+
+    def score(trace: dict[str, Any]) -> float:
+        return sum(
+            -abs(eta - reward.target_viscosity) - reward.energy_weight * energy
+            for eta, energy in zip(trace["eta_r"], trace["field_energy"], strict=True)
+        )
+
+    played = [json.loads((out / "runs" / f"{run}.json").read_text())["episodes"] for run in runs]
+    states = sorted(e["index"] for e in played[0])
+    assert all(sorted(e["index"] for e in episodes) == states for episodes in played)
+    assert not any(e["failed"] for episodes in played for e in episodes)
+    for e in (e for episodes in played for e in episodes):
+        assert e["return"] == pytest.approx(score(e["trace"]), rel=1e-12)  # score() is the env's reward
+    eta = float(np.mean([e["eta_second_half"] for episodes in played for e in episodes]))
+    energy = float(np.mean([e["energy_second_half"] for episodes in played for e in episodes]))
+    front = sorted(
+        (p["energy"], p["eta_second_half"])
+        for p in json.loads((baseline / "pareto.json").read_text())["points"]
+        if p["pareto"]
+    )
+    if energy <= front[0][0]:
+        front_eta = front[0][1]
+    elif energy >= front[-1][0]:
+        front_eta = front[-1][1]
+    else:
+        pairs = zip(front[:-1], front[1:], strict=True)
+        (e0, y0), (e1, y1) = next((a, b) for a, b in pairs if a[0] <= energy <= b[0])
+        front_eta = y0 + (y1 - y0) * (energy - e0) / (e1 - e0)
+    constants = {}  # label -> mean return over the policy's states
+    for path in sorted((baseline / "points").glob("*.json")):
+        point = json.loads(path.read_text())
+        episodes = [e for e in point["episodes"] if e["index"] in states]
+        assert sorted(e["index"] for e in episodes) == states and not any(e["failed"] for e in episodes)
+        constants[point["label"]] = float(np.mean([score(e["trace"]) for e in episodes]))
+    best = max(constants, key=lambda label: constants[label])
+    gaps = [float(np.mean([e["return"] for e in episodes])) - constants[best] for episodes in played]
+    return {
+        "eta": eta,
+        "energy": energy,
+        "front_eta": front_eta,
+        "eta_minus_front": eta - front_eta,
+        "best_label": best,
+        "return_gap": float(np.mean(gaps)),
+        "seeds_above": sum(g > 0 for g in gaps),
+    }
 
 
 def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -204,9 +287,11 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     assert ppo_row["samples"] == "2 training seeds" and len(ppo_row["per_seed"]["eta"]) == 2
     verdict = next(v for v in results["verdicts"] if v["name"] == "ppo (ppo)")
     assert verdict["seeds"] == 2 and 0.0 <= verdict["off_share"] <= 1.0 and verdict["action_std"] >= 0.0
-    assert verdict["eta_minus_front"] == pytest.approx(verdict["eta"] - verdict["front_eta"])
-    best_constant = next(r for r in results["rows"] if r["name"].startswith("best constant"))
-    assert verdict["return_gap"] == pytest.approx(ppo_row["return"]["mean"] - best_constant["return"]["mean"])
+    expected = _recomputed_verdict(out, baseline, ["ppo_seed0", "ppo_seed1"])
+    assert any(r["name"] == f"best constant ({expected['best_label']})" for r in results["rows"])
+    for key in ("eta", "energy", "front_eta", "eta_minus_front", "return_gap"):
+        assert verdict[key] == pytest.approx(expected[key]), key
+    assert verdict["seeds_above"] == expected["seeds_above"]
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
     # Bad inputs exit 2 naming the argument: no run in the folder, a baseline of another env

@@ -239,14 +239,59 @@ def test_history_stacks_previous_frames() -> None:
     assert len(env.unwrapped.observation_labels) == 3 * frame
 
 
+def _documented_observation(doc: str) -> tuple[list[int], list[str]]:
+    """(indices, names) of the table in the docstring's "## Observation Space" section (the lines up to the
+    next "## " heading): each row's index cell ("3" or "3-7") and its comma-separated names, in order."""
+    lines = [line.strip() for line in doc.splitlines()]
+    headings = [i for i, line in enumerate(lines) if line.startswith("## ")]
+    start = next(i for i in headings if lines[i] == "## Observation Space")
+    end = next((i for i in headings if i > start), len(lines))
+    rows = [
+        [c.strip() for c in line.strip("|").split("|")] for line in lines[start + 1 : end] if line[:1] == "|"
+    ]
+    assert rows[0][:2] == ["index", "name"] and set(rows[1][0]) == {"-"}, rows[:2]
+    indices: list[int] = []
+    names: list[str] = []
+    for index, cell, *_ in rows[2:]:
+        first, _, last = index.partition("-")
+        row_indices = list(range(int(first), int(last or first) + 1))
+        row_names = [name.strip() for name in cell.split(",")]
+        assert len(row_indices) == len(row_names), (index, cell)
+        indices += row_indices
+        names += row_names
+    return indices, names
+
+
 def test_observation_layout_is_documented() -> None:
-    for cls, vector in ((dipenv.FieldMagnitudeEnv, False), (dipenv.FieldVectorEnv, True)):
+    """Every registered env class's docstring documents its observation frame: the table of its "##
+    Observation Space" section names every feature, by its full name, at its index, in order."""
+    classes = set()
+    for env_id in dipenv.ENV_IDS:
+        wrapped = make(env_id)
+        env = wrapped.unwrapped
+        cls = type(env)
+        classes.add(cls)
+        names = [f.name for f in env.frame_features()]
+        assert env.observation_labels == names  # history_length 0: one frame
+        if cls in (dipenv.FieldMagnitudeEnv, dipenv.FieldVectorEnv):
+            assert names == [f.name for f in observation_features(cls is dipenv.FieldVectorEnv)]
         doc = cls.__doc__ or ""
-        for section in ("Description", "Action Space", "Observation Space", "Rewards", "Starting State"):
-            assert f"## {section}" in doc
-        for feature in observation_features(vector):
-            assert feature.name.split("_")[0] in doc, feature.name
-        assert ("field_ex" in doc) == vector
+        sections = ["Description", "Observation Space"]
+        if cls is not dipenv.ThickeningControlStressOnlyEnv:  # which refers to ThickeningControlEnv for them
+            sections += ["Action Space", "Rewards", "Starting State", "Episode End"]
+        for section in sections:
+            assert f"## {section}" in doc, (cls.__name__, section)
+        indices, documented = _documented_observation(doc)
+        missing, extra = [n for n in names if n not in documented], [n for n in documented if n not in names]
+        assert documented == names, f"{cls.__name__}: missing {missing}, not features {extra}: {documented}"
+        assert indices == list(range(len(names))), (cls.__name__, indices)
+        wrapped.close()
+    assert classes == {
+        dipenv.FieldMagnitudeEnv,
+        dipenv.FieldVectorEnv,
+        dipenv.ThickeningControlEnv,
+        dipenv.ThickeningControlStressOnlyEnv,
+    }
 
 
 def test_reset_options() -> None:

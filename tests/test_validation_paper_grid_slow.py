@@ -3,7 +3,7 @@
 Runs exactly the documented command ``python -m sim sweep --spec results/paper_grid/spec.yml --out
 runs/paper_grid`` (4 volume fractions x 6 Mason numbers x 2 seeds, N = 100, strain 30 averaged over
 10-30, exact near field, delta = 1e-3; about 2 hours on 2 cores, resumable: a rerun reuses finished
-points made by the same sim sources), then ``results/paper_grid/compare.py`` (values and the
+points made by the same sim sources), then ``scripts/paper_grid_compare.py`` (values and the
 "paper says / we get" table, reproduced in docs/validation.md), and asserts the trends of
 docs/validation.md#published-results that
 this model reproduces, on the seed means:
@@ -36,7 +36,7 @@ OUT = ROOT / "runs" / "paper_grid"
 
 def _compare_module():
     spec = importlib.util.spec_from_file_location(
-        "paper_grid_compare", ROOT / "results/paper_grid/compare.py"
+        "paper_grid_compare", ROOT / "scripts/paper_grid_compare.py"
     )
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)

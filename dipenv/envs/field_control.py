@@ -493,9 +493,15 @@ _DOC_COMMON = """
     | 0 | slog_eta_r | interval-averaged relative viscosity eta_r | slog(eta gammadot) | [-6, 6] |
     | 1 | slog_n1 | interval-averaged N1 = S_xx - S_yy | slog(eta gammadot) | [-6, 6] |
     | 2 | slog_n2 | interval-averaged N2 = S_yy - S_zz | slog(eta gammadot) | [-6, 6] |
-    | 3-7 | fabric_xx, _yy, _xy, _xz, _yz | A - I/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
+    | 3 | fabric_xx | A_xx - 1/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
+    | 4 | fabric_yy | A_yy - 1/3 | 1 | [-1, 1] |
+    | 5 | fabric_xy | A_xy | 1 | [-1, 1] |
+    | 6 | fabric_xz | A_xz | 1 | [-1, 1] |
+    | 7 | fabric_yz | A_yz | 1 | [-1, 1] |
     | 8 | contact_number | neighbours per particle with surface gap < 0.01 a | 1 | [0, 13] |
-    | 9-11 | g_equator, _middle, _pole | g at r in [2, 2.2) a in bins of abs(cos theta) | 1 | [0, 100] |
+    | 9 | g_equator | g at r in [2, 2.2) a, abs(cos theta) in [0, 1/3) | 1 | [0, 100] |
+    | 10 | g_middle | g at r in [2, 2.2) a, abs(cos theta) in [1/3, 2/3) | 1 | [0, 100] |
+    | 11 | g_pole | g at r in [2, 2.2) a, abs(cos theta) in [2/3, 1] | 1 | [0, 100] |
     | 12 | field_energy_fraction | (E0 / E0_max)^2 = Mn_min / Mn of the field in force (0: off) | 1 | [0, 1] |
     | 13 | field_coordinate | strength-action coordinate of that Mn (-1: off) | 1 | [-1, 1] |
     {direction_rows}

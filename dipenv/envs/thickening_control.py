@@ -62,10 +62,27 @@ class ThickeningControlEnv(FieldControlEnv):
 
     ## Observation Space
 
-    The frame of ``FieldMagnitude-v0`` (interval-averaged ``slog eta_r``, ``slog N1``, ``slog N2`` in
-    ``eta gammadot_ref``; fabric, contact number, angular g of the end state; the field in force) plus
-    ``log10_shear_rate`` (index 14: the rate in force at the end of the interval, range [-2, 2]).
-    ``observation_labels`` names every index; ``history_length`` stacks previous frames.
+    The frame of ``FieldMagnitude-v0`` (stresses in ``eta gammadot_ref``; the microstructure of the end
+    state; the field in force, as ``Mn_ref``) plus the shear rate; ``observation_labels`` names every
+    index; ``history_length`` stacks previous frames. ``slog(x) = sign(x) log10(1 + |x|)``.
+
+    | index | name | quantity | units | range |
+    |---|---|---|---|---|
+    | 0 | slog_eta_r | interval-averaged relative viscosity eta_r | slog(eta gammadot_ref) | [-6, 6] |
+    | 1 | slog_n1 | interval-averaged N1 = S_xx - S_yy | slog(eta gammadot_ref) | [-6, 6] |
+    | 2 | slog_n2 | interval-averaged N2 = S_yy - S_zz | slog(eta gammadot_ref) | [-6, 6] |
+    | 3 | fabric_xx | A_xx - 1/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
+    | 4 | fabric_yy | A_yy - 1/3 | 1 | [-1, 1] |
+    | 5 | fabric_xy | A_xy | 1 | [-1, 1] |
+    | 6 | fabric_xz | A_xz | 1 | [-1, 1] |
+    | 7 | fabric_yz | A_yz | 1 | [-1, 1] |
+    | 8 | contact_number | neighbours per particle with surface gap < 0.01 a | 1 | [0, 13] |
+    | 9 | g_equator | g at r in [2, 2.2) a, abs(cos theta) in [0, 1/3) | 1 | [0, 100] |
+    | 10 | g_middle | g at r in [2, 2.2) a, abs(cos theta) in [1/3, 2/3) | 1 | [0, 100] |
+    | 11 | g_pole | g at r in [2, 2.2) a, abs(cos theta) in [2/3, 1] | 1 | [0, 100] |
+    | 12 | field_energy_fraction | (E0 / E0_max)^2 = Mn_min / Mn_ref in force (0: off) | 1 | [0, 1] |
+    | 13 | field_coordinate | strength-action coordinate of that Mn_ref (-1: off) | 1 | [-1, 1] |
+    | 14 | log10_shear_rate | shear rate in force at the end of the interval | log10(gammadot_ref) | [-2, 2] |
 
     ## Rewards
 
@@ -234,9 +251,26 @@ class ThickeningControlEnv(FieldControlEnv):
 
 
 class ThickeningControlStressOnlyEnv(ThickeningControlEnv):
-    """As :class:`ThickeningControlEnv`, but the observation holds only what a device without a flow meter
+    """## Description
+
+    As :class:`ThickeningControlEnv`, but the observation holds only what a device without a flow meter
     measures: the interval-averaged shear stress ``Sigma_xy`` (index 0, ``slog`` of ``eta gammadot_ref``),
     ``N1``, ``N2``, the microstructure and the field in force; neither the rate nor ``eta_r``. The agent
-    must infer the operating point (``history_length`` stacks previous frames for that)."""
+    must infer the operating point (``history_length`` stacks previous frames for that). Action, reward,
+    start states and episode end as :class:`ThickeningControlEnv`.
+
+    ## Observation Space
+
+    | index | name | quantity | units | range |
+    |---|---|---|---|---|
+    | 0 | slog_shear_stress | interval-averaged shear stress Sigma_xy | slog(eta gammadot_ref) | [-6, 6] |
+    | 1 | slog_n1 | interval-averaged N1 = S_xx - S_yy | slog(eta gammadot_ref) | [-6, 6] |
+    | 2 | slog_n2 | interval-averaged N2 = S_yy - S_zz | slog(eta gammadot_ref) | [-6, 6] |
+    | 3-7 | fabric_xx, fabric_yy, fabric_xy, fabric_xz, fabric_yz | A - I/3 (end state) | 1 | [-1, 1] |
+    | 8 | contact_number | as :class:`ThickeningControlEnv` | 1 | [0, 13] |
+    | 9-11 | g_equator, g_middle, g_pole | angular g, as :class:`ThickeningControlEnv` | 1 | [0, 100] |
+    | 12 | field_energy_fraction | as :class:`ThickeningControlEnv` | 1 | [0, 1] |
+    | 13 | field_coordinate | as :class:`ThickeningControlEnv` | 1 | [-1, 1] |
+    """
 
     rate_observed = False

@@ -1,7 +1,7 @@
 """Table and figure of the quiescent sweep (``results/quiescent/spec.yml``): particle pressure, contact
 structure along the field and diffusivities against the volume fraction, per mechanism.
 
-    python results/quiescent/summarise.py runs/quiescent [--out results/quiescent]
+    python scripts/quiescent_summary.py runs/quiescent [--out results/quiescent/short]
 
 Writes ``table.md`` and ``quiescent.png`` into ``--out`` (default: the sweep folder). Units: time a/U0,
 stresses eps E0^2, diffusivities U0 a (U0 = eps E0^2 a / eta); the field is along y.

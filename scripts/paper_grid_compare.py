@@ -1,6 +1,6 @@
 """Compare the paper grid (``results/paper_grid/spec.yml``) point by point with the paper's results.
 
-    python results/paper_grid/compare.py runs/paper_grid [--out results/paper_grid]
+    python scripts/paper_grid_compare.py runs/paper_grid [--out results/paper_grid]
 
 Reads every finished point (``sim.sweep_figures.load_sweep``: means and standard errors over seeds),
 writes ``values.md`` (eta_r, N1, N2, particle pressure, ``U_rms^DIP / U_rms^shear``, D_yy per phi and Mn)

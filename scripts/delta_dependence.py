@@ -2,14 +2,14 @@
 
 N = 100, strain 20 (averaged 5-20), seed 1, exact near field, field along y. Usage (resumable):
 
-    python results/delta_dependence/run.py OUT            # delta 1e-4 and 1e-3 at Mn = 5, 20, no field
-    python results/delta_dependence/run.py OUT --low-mn   # delta 1e-3 at Mn = 1, 0.1
+    python scripts/delta_dependence.py OUT            # delta 1e-4 and 1e-3 at Mn = 5, 20, no field
+    python scripts/delta_dependence.py OUT --low-mn   # delta 1e-3 at Mn = 1, 0.1
 
 (delta = 1e-4 at low Mn is in results/validation_dip/exact.)
 """
 
+import argparse
 import math
-import sys
 
 from sim import SimulationConfig
 from sim.sweep import run_sweep
@@ -42,4 +42,8 @@ def main(out: str, grid: dict[float, tuple[float, ...]]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], LOW_MN if "--low-mn" in sys.argv[2:] else HIGH_MN)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", help="output folder (one sweep folder per delta under it; resumable)")
+    parser.add_argument("--low-mn", action="store_true", help="delta 1e-3 at Mn = 1, 0.1 instead")
+    args = parser.parse_args()
+    main(args.out, LOW_MN if args.low_mn else HIGH_MN)

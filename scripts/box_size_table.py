@@ -3,14 +3,14 @@ number of field-induced layers of spacing 2.45 a that fit (L / 2.45), and over s
 error of eta_r, N1, N2 and the layer order psi, the layer spacing and the strain at which ordering sets in
 (docs/layering.md); per seed, eta_r and psi.
 
-    python results/box_size/collect.py SWEEP_DIR [SWEEP_DIR ...] > results/box_size/table.md
+    python scripts/box_size_table.py SWEEP_DIR [SWEEP_DIR ...] > results/box_size/table.md
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
-import sys
 from collections import defaultdict
 from pathlib import Path
 
@@ -64,4 +64,6 @@ def main(folders: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1:])
+    parser = argparse.ArgumentParser(description="Tabulate the box-size study (Markdown on stdout).")
+    parser.add_argument("sweeps", nargs="+", help="folders written by python -m sim sweep")
+    main(parser.parse_args().sweeps)
