@@ -20,26 +20,34 @@ DEFAULT_ENERGY_WEIGHT = 1.0
 DEFAULT_FAILURE_PENALTY = 50.0
 """Reward of a failed step and of each step an episode loses by failing (units eta gammadot)."""
 
-DEFAULT_TARGET_VISCOSITY = {0.45: 6.1}
-"""Default targets by volume fraction: the lowest time-averaged ``eta_r`` that a constant field reaches
-in ``dipenv/FieldMagnitude-v0`` (N = 64), rounded: 6.15 +- 0.28 at Mn = 0.5 and 6.23 +- 0.34 at Mn = 1
-(mean and standard error over the 16 test start states, second half of each episode; no field: 10.16,
-Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0`` (README: open-loop baseline; the command
-is in its ``command.txt``). For other volume fractions pass ``target_viscosity`` explicitly."""
+DEFAULT_TARGET_VISCOSITY = {(0.45, 64): 6.1, (0.45, 150): 5.5}
+"""Default targets by (volume fraction, N): the lowest time-averaged ``eta_r`` that a constant field
+reaches in ``dipenv/FieldMagnitude-v*`` episodes, rounded. ``(0.45, 64)`` (the ``-v0`` ids): 6.15 +- 0.28
+at Mn = 0.5 and 6.23 +- 0.34 at Mn = 1 (mean and standard error over the 16 test start states, second half
+of each episode; no field: 10.16, Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0``.
+``(0.45, 150)`` (the ``-v1`` ids): 5.52 +- 0.44 at Mn = 0.5, 5.93 +- 0.67 at Mn = 0.8, 7.77 +- 0.22 at
+Mn = 1 (8 test start states), from ``results/box_size/env_episodes`` (the box-size study,
+docs/environments.md#box-size). For other volume fractions or N pass ``target_viscosity`` explicitly."""
 
 
-def default_target_viscosity(volume_fraction: float) -> float:
-    """The tabulated default target for ``volume_fraction`` (within 1e-6).
+def default_target_viscosity(volume_fraction: float, n_particles: int = 64) -> float:
+    """The tabulated default target for ``volume_fraction`` (within 1e-6) and ``n_particles``.
 
     Raises:
         ValueError: if no default is tabulated for it (name the ones that are).
     """
-    for phi, target in DEFAULT_TARGET_VISCOSITY.items():
-        if abs(phi - volume_fraction) < 1e-6:
-            return target
+    return _tabulated(DEFAULT_TARGET_VISCOSITY, "target_viscosity", volume_fraction, n_particles)
+
+
+def _tabulated(table: dict[tuple[float, int], float], name: str, volume_fraction: float, n: int) -> float:
+    """``table[(phi, N)]`` for ``phi`` within 1e-6 of ``volume_fraction``; ``ValueError`` naming ``name``
+    and the tabulated pairs otherwise (the plateau depends on the box: docs/environments.md#box-size)."""
+    for (phi, size), value in table.items():
+        if abs(phi - volume_fraction) < 1e-6 and size == n:
+            return value
     raise ValueError(
-        f"no default target_viscosity for volume_fraction={volume_fraction}; tabulated: "
-        f"{sorted(DEFAULT_TARGET_VISCOSITY)}; pass target_viscosity explicitly"
+        f"no default {name} for volume_fraction={volume_fraction}, n_particles={n}; tabulated (phi, N): "
+        f"{sorted(table)}; pass {name} explicitly"
     )
 
 
@@ -90,23 +98,20 @@ class ViscosityTargetReward:
         }
 
 
-DEFAULT_VISCOSITY_CAP = {0.45: 6.5}
-"""Default ``eta_cap`` of the thickening-control reward by volume fraction: the low-viscosity plateau that
-constant fields reach in ``dipenv/FieldMagnitude-v0`` at phi = 0.45 (eta_r 6.15 +- 0.28 at Mn 0.5, 6.23 +-
-0.34 at Mn 1, 6.03 at Mn 0.8; ``results/open_loop/FieldMagnitude-v0``), plus about one standard error, so
-that a suspension held on the plateau pays no thickening penalty. Provisional: N = 64's plateau sits above
-N = 100's (issue 24's box-size study decides the environments' N, and with it this value)."""
+DEFAULT_VISCOSITY_CAP = {(0.45, 64): 6.5, (0.45, 150): 6.0}
+"""Default ``eta_cap`` of the thickening-control reward by (volume fraction, N): the low-viscosity plateau
+that constant fields reach in ``dipenv/FieldMagnitude-v*`` episodes at the reference rate, plus about one
+standard error, so that a suspension held on the plateau pays no thickening penalty. ``(0.45, 64)`` (the
+``-v0`` ids): eta_r 6.15 +- 0.28 at Mn 0.5, 6.23 +- 0.34 at Mn 1, 6.03 at Mn 0.8
+(``results/open_loop/FieldMagnitude-v0``). ``(0.45, 150)`` (the ``-v1`` ids): 5.52 +- 0.44 at Mn 0.5, 5.93
++- 0.67 at Mn 0.8, so 5.5 plus one standard error (``results/box_size/env_episodes``;
+docs/environments.md#box-size)."""
 
 
-def default_viscosity_cap(volume_fraction: float) -> float:
-    """The tabulated default ``eta_cap`` for ``volume_fraction`` (within 1e-6); ``ValueError`` otherwise."""
-    for phi, cap in DEFAULT_VISCOSITY_CAP.items():
-        if abs(phi - volume_fraction) < 1e-6:
-            return cap
-    raise ValueError(
-        f"no default eta_cap for volume_fraction={volume_fraction}; tabulated: "
-        f"{sorted(DEFAULT_VISCOSITY_CAP)}; pass eta_cap explicitly"
-    )
+def default_viscosity_cap(volume_fraction: float, n_particles: int = 64) -> float:
+    """The tabulated default ``eta_cap`` for ``volume_fraction`` (within 1e-6) and ``n_particles``;
+    ``ValueError`` otherwise."""
+    return _tabulated(DEFAULT_VISCOSITY_CAP, "eta_cap", volume_fraction, n_particles)
 
 
 @dataclass(frozen=True)

@@ -211,7 +211,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
     def _reward_for(self, volume_fraction: float) -> ViscosityTargetReward:
         target = self.explicit_target
         if target is None:
-            target = default_target_viscosity(volume_fraction)
+            target = default_target_viscosity(volume_fraction, self.base_config.n_particles)
         return ViscosityTargetReward(float(target), self.energy_weight, self.failure_penalty)
 
     def settings(self) -> dict[str, Any]:
