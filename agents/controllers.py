@@ -1,6 +1,6 @@
 """Hand-made controllers for the thickening-control environments, tuned on validation, run on test.
 
-    python -m agents.controllers --env dipenv/ThickeningControl-v1 --controller feedforward --out DIR
+    python -m agents.controllers --env dipenv/ThickeningControl-v0 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
         [--tune-episodes N] [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS]
 
@@ -68,9 +68,9 @@ DEFAULT_GRIDS: dict[str, dict[str, list[float]]] = {
 }
 """Grids searched on the validation split when ``--grid`` is not given. ``mason_star`` spans the paper's
 thickening window (Mn 0.25–4, Fig. 3b). The PI setpoint is in the measured quantity's units: ``eta_r`` on
-``ThickeningControl-v1`` (at or below its default cap 6.0; 6.5 on ``-v0``), ``Sigma_xy``
-in ``eta gammadot_ref`` on the stress-only env (the same numbers: the schedules' rates are log-uniform around
-``gammadot_ref``). The gains are in action units per decade of error."""
+``ThickeningControl-v0`` (below the default cap 6.5), ``Sigma_xy`` in ``eta gammadot_ref`` on the
+stress-only env (the same numbers: the schedules' rates are log-uniform around ``gammadot_ref``). The gains
+are in action units per decade of error."""
 
 
 def _index(unwrapped: Any, label: str) -> int:
@@ -254,7 +254,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--env", default="dipenv/ThickeningControl-v1")
+    parser.add_argument("--env", default="dipenv/ThickeningControl-v0")
     parser.add_argument("--controller", required=True, choices=CONTROLLERS)
     parser.add_argument("--grid", nargs="*", default=[], help="name=v1,v2 ... (default: DEFAULT_GRIDS)")
     parser.add_argument("--tune-split", default="validation")

@@ -3,16 +3,15 @@
 ``import dipenv`` registers (Gymnasium 1.x has no plugin discovery; ``gym.make("dipenv:dipenv/...")``
 imports it too):
 
-* ``dipenv/FieldMagnitude-v1``: field strength, direction along y (N = 150, phi = 0.45, 0.25 strain per
-  action, 48 actions per episode); ``-v0``: the same at N = 64 (kept for the results made with it; its
-  low-viscosity plateau is a small-box value, docs/environments.md#box-size);
-* ``dipenv/FieldVector-v1`` (``-v0`` at N = 64): strength and direction;
+* ``dipenv/FieldMagnitude-v0``: field strength, direction along y (N = 64, phi = 0.45, 0.25 strain per
+  action, 48 actions per episode);
+* ``dipenv/FieldVector-v0``: strength and direction;
 * ``dipenv/FieldMagnitudeTiny-v0``, ``dipenv/FieldVectorTiny-v0``: N = 32, 0.02 strain per action, 10
   actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo;
-* ``dipenv/ThickeningControl-v1`` (``-v0`` at N = 64): field strength while the shear rate follows a
-  schedule of holds and ramps in [0.2, 5] gammadot_ref (the rate is observed);
-  ``dipenv/ThickeningControlStressOnly-v1`` (``-v0``): the same with only the measured stresses and the
-  microstructure observed; ``dipenv/ThickeningControlTiny-v0`` for tests and the demo.
+* ``dipenv/ThickeningControl-v0``: field strength while the shear rate follows a schedule of holds and
+  ramps in [0.2, 5] gammadot_ref (the rate is observed); ``dipenv/ThickeningControlStressOnly-v0``: the
+  same with only the measured stresses and the microstructure observed; ``dipenv/ThickeningControlTiny-v0``
+  for tests and the demo.
 
 See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` and
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` for the full descriptions.
@@ -31,7 +30,6 @@ __all__ = [
     "ENV_IDS",
     "THICKENING_TINY_KWARGS",
     "TINY_KWARGS",
-    "V1_KWARGS",
     "FieldMagnitudeEnv",
     "FieldVectorEnv",
     "ThickeningControlEnv",
@@ -62,12 +60,6 @@ THICKENING_TINY_KWARGS: dict[str, Any] = {
 """The tiny thickening-control variant: the tiny box and intervals, with holds and ramps scaled to its
 0.2-time episodes."""
 
-V1_KWARGS: dict[str, Any] = {"n_particles": 150}
-"""What the ``-v1`` ids change from ``-v0``: N = 150 instead of 64 (L = 11.2 a at phi = 0.45), the cheapest
-box whose episodes at Mn = 1 match the large boxes' eta_r (box-size study, docs/environments.md#box-size);
-the reward's default target and cap follow N (:data:`dipenv.rewards.DEFAULT_TARGET_VISCOSITY`,
-:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`)."""
-
 _THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
     "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", {}),
@@ -75,10 +67,6 @@ _SPECS = {
     "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS),
     "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS),
     "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", {}),
-    "dipenv/FieldMagnitude-v1": ("FieldMagnitudeEnv", V1_KWARGS),
-    "dipenv/FieldVector-v1": ("FieldVectorEnv", V1_KWARGS),
-    "dipenv/ThickeningControl-v1": (f"{_THICKENING}:ThickeningControlEnv", V1_KWARGS),
-    "dipenv/ThickeningControlStressOnly-v1": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", V1_KWARGS),
     "dipenv/ThickeningControlStressOnly-v0": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", {}),
     "dipenv/ThickeningControlTiny-v0": (f"{_THICKENING}:ThickeningControlEnv", THICKENING_TINY_KWARGS),
 }

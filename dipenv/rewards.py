@@ -20,14 +20,12 @@ DEFAULT_ENERGY_WEIGHT = 1.0
 DEFAULT_FAILURE_PENALTY = 50.0
 """Reward of a failed step and of each step an episode loses by failing (units eta gammadot)."""
 
-DEFAULT_TARGET_VISCOSITY = {(0.45, 64): 6.1, (0.45, 150): 5.5}
+DEFAULT_TARGET_VISCOSITY = {(0.45, 64): 6.1}
 """Default targets by (volume fraction, N): the lowest time-averaged ``eta_r`` that a constant field
-reaches in ``dipenv/FieldMagnitude-v*`` episodes, rounded. ``(0.45, 64)`` (the ``-v0`` ids): 6.15 +- 0.28
-at Mn = 0.5 and 6.23 +- 0.34 at Mn = 1 (mean and standard error over the 16 test start states, second half
-of each episode; no field: 10.16, Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0``.
-``(0.45, 150)`` (the ``-v1`` ids): 5.52 +- 0.44 at Mn = 0.5, 5.93 +- 0.67 at Mn = 0.8, 7.77 +- 0.22 at
-Mn = 1 (8 test start states), from ``results/box_size/env_episodes`` (the box-size study,
-docs/environments.md#box-size). For other volume fractions or N pass ``target_viscosity`` explicitly."""
+reaches in ``dipenv/FieldMagnitude-v0`` (N = 64), rounded: 6.15 +- 0.28 at Mn = 0.5 and 6.23 +- 0.34 at
+Mn = 1 (mean and standard error over the 16 test start states, second half of each episode; no field:
+10.16, Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0``. The plateau depends on the box
+(docs/environments.md#box-size), so another N or volume fraction needs ``target_viscosity`` explicitly."""
 
 
 def default_target_viscosity(volume_fraction: float, n_particles: int = 64) -> float:
@@ -98,14 +96,13 @@ class ViscosityTargetReward:
         }
 
 
-DEFAULT_VISCOSITY_CAP = {(0.45, 64): 6.5, (0.45, 150): 6.0}
+DEFAULT_VISCOSITY_CAP = {(0.45, 64): 6.5}
 """Default ``eta_cap`` of the thickening-control reward by (volume fraction, N): the low-viscosity plateau
-that constant fields reach in ``dipenv/FieldMagnitude-v*`` episodes at the reference rate, plus about one
-standard error, so that a suspension held on the plateau pays no thickening penalty. ``(0.45, 64)`` (the
-``-v0`` ids): eta_r 6.15 +- 0.28 at Mn 0.5, 6.23 +- 0.34 at Mn 1, 6.03 at Mn 0.8
-(``results/open_loop/FieldMagnitude-v0``). ``(0.45, 150)`` (the ``-v1`` ids): 5.52 +- 0.44 at Mn 0.5, 5.93
-+- 0.67 at Mn 0.8, so 5.5 plus one standard error (``results/box_size/env_episodes``;
-docs/environments.md#box-size)."""
+that constant fields reach in ``dipenv/FieldMagnitude-v0`` at phi = 0.45, N = 64 (eta_r 6.15 +- 0.28 at
+Mn 0.5, 6.23 +- 0.34 at Mn 1, 6.03 at Mn 0.8; ``results/open_loop/FieldMagnitude-v0``), plus about one
+standard error, so that a suspension held on the plateau pays no thickening penalty. Provisional: the
+plateau depends on the box (docs/environments.md#box-size), and issue 24 has not yet fixed the
+environments' N."""
 
 
 def default_viscosity_cap(volume_fraction: float, n_particles: int = 64) -> float:

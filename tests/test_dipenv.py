@@ -57,10 +57,6 @@ def test_every_id_is_registered() -> None:
         "dipenv/ThickeningControl-v0",
         "dipenv/ThickeningControlStressOnly-v0",
         "dipenv/ThickeningControlTiny-v0",
-        "dipenv/FieldMagnitude-v1",
-        "dipenv/FieldVector-v1",
-        "dipenv/ThickeningControl-v1",
-        "dipenv/ThickeningControlStressOnly-v1",
     }
     for env_id in dipenv.ENV_IDS:
         assert gym.spec(env_id).max_episode_steps is None  # the envs truncate at their own episode_steps

@@ -76,27 +76,14 @@ def test_reward_terms() -> None:
     r, terms = reward(7.0, 0.5)
     assert r == pytest.approx(-3.0) and terms["reward_viscosity"] == -2.0 and terms["reward_energy"] == -1.0
     assert reward.failure(3)[0] == -40.0
-    assert default_target_viscosity(0.45) == 6.1  # N = 64, the -v0 ids
-    assert default_target_viscosity(0.45, 150) == 5.5  # N = 150, the -v1 ids (a lower plateau)
+    assert default_target_viscosity(0.45) == default_target_viscosity(0.45, 64) == 6.1
     with pytest.raises(ValueError, match="target_viscosity"):
         default_target_viscosity(0.2)
     with pytest.raises(ValueError, match=r"n_particles=100.*\(0.45, 64\)"):
         default_target_viscosity(0.45, 100)
-    assert (default_viscosity_cap(0.45, 150), default_viscosity_cap(0.45, 64)) == (6.0, 6.5)
+    assert default_viscosity_cap(0.45, 64) == 6.5
     with pytest.raises(ValueError, match="eta_cap"):
-        default_viscosity_cap(0.45, 32)
-
-
-def test_v1_ids_are_v0_at_n150_with_their_own_reward_defaults() -> None:
-    """The -v1 ids differ from -v0 in N (150, issue 24's box-size study) and in the defaults that follow N."""
-    import gymnasium as gym
-
-    import dipenv
-
-    for name in ("FieldMagnitude", "FieldVector", "ThickeningControl", "ThickeningControlStressOnly"):
-        old, new = gym.spec(f"dipenv/{name}-v0"), gym.spec(f"dipenv/{name}-v1")
-        assert old.entry_point == new.entry_point and new.kwargs == {**old.kwargs, **dipenv.V1_KWARGS}
-    assert dipenv.V1_KWARGS == {"n_particles": 150}
+        default_viscosity_cap(0.45, 150)  # the plateau depends on N: no default for another box
 
 
 def test_observation_bounds_and_signed_log() -> None:

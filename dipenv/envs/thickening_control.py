@@ -88,9 +88,8 @@ class ThickeningControlEnv(FieldControlEnv):
 
     ``r = -(max(0, eta_r - eta_cap) + w_E <eps E0^2>)`` per interval: ``eta_r = Sigma_xy/(eta gammadot)``
     time-averaged over the interval at the rates in force, ``<eps E0^2> = <1/Mn_ref>`` the field energy
-    density (``eta gammadot_ref``). Default ``eta_cap``: :data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP` (the
-    constant fields' low-viscosity plateau at phi = 0.45: 6.0 at N = 150, the ``-v1`` ids; 6.5 at N = 64,
-    ``-v0``), ``w_E = 1``. ``info`` holds every term
+    density (``eta gammadot_ref``). Default ``eta_cap``: :data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP` (6.5
+    at phi = 0.45, the constant fields' low-viscosity plateau), ``w_E = 1``. ``info`` holds every term
     and ``eta_r``, ``n1``, ``n2``, ``shear_stress``, ``shear_rate`` (interval mean), ``shear_rate_end``,
     ``instantaneous_mason_number`` (interval mean of rate x Mn_ref), ``mason_number`` (``Mn_ref``),
     ``field_energy``, ``eta_cap``, ``time`` (since the episode start) and the simulator's step statistics.
