@@ -27,6 +27,19 @@ SHELL = (2.0, 2.2)
 ANGULAR_BINS = 3
 """Bins of ``|cos theta|`` (theta from the field): equator ``[0, 1/3)``, middle, pole ``[2/3, 1]``."""
 
+MICROSTRUCTURE_DOC_ROWS = """| 3 | fabric_xx | A_xx - 1/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
+    | 4 | fabric_yy | A_yy - 1/3 | 1 | [-1, 1] |
+    | 5 | fabric_xy | A_xy | 1 | [-1, 1] |
+    | 6 | fabric_xz | A_xz | 1 | [-1, 1] |
+    | 7 | fabric_yz | A_yz | 1 | [-1, 1] |
+    | 8 | contact_number | neighbours per particle with surface gap < 0.01 a | 1 | [0, 13] |
+    | 9 | g_equator | g at r in [2, 2.2) a, abs(cos theta) in [0, 1/3) | 1 | [0, 100] |
+    | 10 | g_middle | g at r in [2, 2.2) a, abs(cos theta) in [1/3, 2/3) | 1 | [0, 100] |
+    | 11 | g_pole | g at r in [2, 2.2) a, abs(cos theta) in [2/3, 1] | 1 | [0, 100] |"""
+"""Rows 3-11 (fabric, contact number, angular g) of the observation tables in the env classes' docstrings
+(each class's "## Observation Space"; one text for all of them, spliced in where ``{microstructure_rows}``
+stands, indented by 4 spaces after the first line)."""
+
 
 @dataclass(frozen=True)
 class ObservationFeature:

@@ -30,6 +30,7 @@ from dipenv.actions import (
     validate_action,
 )
 from dipenv.observations import (
+    MICROSTRUCTURE_DOC_ROWS,
     ObservationFeature,
     microstructure_features,
     observation_bounds,
@@ -493,15 +494,7 @@ _DOC_COMMON = """
     | 0 | slog_eta_r | interval-averaged relative viscosity eta_r | slog(eta gammadot) | [-6, 6] |
     | 1 | slog_n1 | interval-averaged N1 = S_xx - S_yy | slog(eta gammadot) | [-6, 6] |
     | 2 | slog_n2 | interval-averaged N2 = S_yy - S_zz | slog(eta gammadot) | [-6, 6] |
-    | 3 | fabric_xx | A_xx - 1/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
-    | 4 | fabric_yy | A_yy - 1/3 | 1 | [-1, 1] |
-    | 5 | fabric_xy | A_xy | 1 | [-1, 1] |
-    | 6 | fabric_xz | A_xz | 1 | [-1, 1] |
-    | 7 | fabric_yz | A_yz | 1 | [-1, 1] |
-    | 8 | contact_number | neighbours per particle with surface gap < 0.01 a | 1 | [0, 13] |
-    | 9 | g_equator | g at r in [2, 2.2) a, abs(cos theta) in [0, 1/3) | 1 | [0, 100] |
-    | 10 | g_middle | g at r in [2, 2.2) a, abs(cos theta) in [1/3, 2/3) | 1 | [0, 100] |
-    | 11 | g_pole | g at r in [2, 2.2) a, abs(cos theta) in [2/3, 1] | 1 | [0, 100] |
+    {microstructure_rows}
     | 12 | field_energy_fraction | (E0 / E0_max)^2 = Mn_min / Mn of the field in force (0: off) | 1 | [0, 1] |
     | 13 | field_coordinate | strength-action coordinate of that Mn (-1: off) | 1 | [-1, 1] |
     {direction_rows}
@@ -572,7 +565,9 @@ class FieldMagnitudeEnv(FieldControlEnv):
     ``actuator_time_constant > 0`` the amplitude ``E0`` follows the command with a first-order lag.
     """
 
-    __doc__ = (__doc__ or "") + _DOC_COMMON.format(direction_rows="")
+    __doc__ = (__doc__ or "") + _DOC_COMMON.format(
+        microstructure_rows=MICROSTRUCTURE_DOC_ROWS, direction_rows=""
+    )
     vector_field = False
 
 
@@ -593,9 +588,10 @@ class FieldVectorEnv(FieldControlEnv):
     """
 
     __doc__ = (__doc__ or "") + _DOC_COMMON.format(
+        microstructure_rows=MICROSTRUCTURE_DOC_ROWS,
         direction_rows=(
             "| 14-16 | field_ex, field_ey, field_ez | field direction, flipped to e_y >= 0 | 1 |"
             " [-1, 1], [0, 1], [-1, 1] |"
-        )
+        ),
     )
     vector_field = True

@@ -17,7 +17,7 @@ import numpy as np
 
 import sim
 from dipenv.envs.field_control import FieldControlEnv
-from dipenv.observations import ObservationFeature, observation_features, signed_log
+from dipenv.observations import MICROSTRUCTURE_DOC_ROWS, ObservationFeature, observation_features, signed_log
 from dipenv.rewards import ThickeningPenaltyReward, ViscosityTargetReward, default_viscosity_cap
 from dipenv.schedules import (
     FIXED_SPLITS,
@@ -71,15 +71,7 @@ class ThickeningControlEnv(FieldControlEnv):
     | 0 | slog_eta_r | interval-averaged relative viscosity eta_r | slog(eta gammadot_ref) | [-6, 6] |
     | 1 | slog_n1 | interval-averaged N1 = S_xx - S_yy | slog(eta gammadot_ref) | [-6, 6] |
     | 2 | slog_n2 | interval-averaged N2 = S_yy - S_zz | slog(eta gammadot_ref) | [-6, 6] |
-    | 3 | fabric_xx | A_xx - 1/3, A = <n n> over pairs with r < 2.2 a | 1 | [-1, 1] |
-    | 4 | fabric_yy | A_yy - 1/3 | 1 | [-1, 1] |
-    | 5 | fabric_xy | A_xy | 1 | [-1, 1] |
-    | 6 | fabric_xz | A_xz | 1 | [-1, 1] |
-    | 7 | fabric_yz | A_yz | 1 | [-1, 1] |
-    | 8 | contact_number | neighbours per particle with surface gap < 0.01 a | 1 | [0, 13] |
-    | 9 | g_equator | g at r in [2, 2.2) a, abs(cos theta) in [0, 1/3) | 1 | [0, 100] |
-    | 10 | g_middle | g at r in [2, 2.2) a, abs(cos theta) in [1/3, 2/3) | 1 | [0, 100] |
-    | 11 | g_pole | g at r in [2, 2.2) a, abs(cos theta) in [2/3, 1] | 1 | [0, 100] |
+    {microstructure_rows}
     | 12 | field_energy_fraction | (E0 / E0_max)^2 = Mn_min / Mn_ref in force (0: off) | 1 | [0, 1] |
     | 13 | field_coordinate | strength-action coordinate of that Mn_ref (-1: off) | 1 | [-1, 1] |
     | 14 | log10_shear_rate | shear rate in force at the end of the interval | log10(gammadot_ref) | [-2, 2] |
@@ -119,6 +111,7 @@ class ThickeningControlEnv(FieldControlEnv):
     * v0: initial version (2026-12-02).
     """
 
+    __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
     rate_observed: ClassVar[bool] = True
 
     def __init__(
