@@ -22,11 +22,16 @@ import numpy as np
 
 
 def parse_windows(text: str) -> list[tuple[float, float]]:
+    """``"0-6,6-12"`` -> ``[(0, 6), (6, 12)]``; ``ValueError`` naming the bad window."""
     windows = []
     for part in text.split(","):
-        low, high = (float(v) for v in part.split("-"))
+        bounds = part.split("-")
+        try:
+            low, high = (float(v) for v in bounds)
+        except ValueError:
+            low = high = math.nan
         if not (0.0 <= low < high):
-            raise SystemExit(f"--windows: each window must be LOW-HIGH with 0 <= LOW < HIGH, got {part!r}")
+            raise ValueError(f"each window must be LOW-HIGH with 0 <= LOW < HIGH, got {part!r}")
         windows.append((low, high))
     return windows
 
@@ -49,7 +54,10 @@ def main() -> None:
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--windows", default="0-6,6-12,12-20,20-40,40-60,60-80,80-100")
     args = parser.parse_args()
-    windows = parse_windows(args.windows)
+    try:
+        windows = parse_windows(args.windows)
+    except ValueError as error:
+        parser.error(f"--windows: {error}")  # exit 2
     groups: dict[tuple[float, float, int], list[list[float]]] = defaultdict(list)
     for folder in args.runs:
         for result in sorted(folder.rglob("result.json")):
