@@ -1,6 +1,6 @@
 """Hand-made controllers for the thickening-control environments, tuned on validation, run on test.
 
-    python -m agents.controllers --env dipenv/ThickeningControl-v0 --controller feedforward --out DIR
+    python -m agents.controllers --env dipenv/ThickeningControl-v1 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
         [--tune-episodes N] [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS]
 
@@ -12,9 +12,9 @@ not matter):
   ``eps E0^2 ∝ gammadot``, i.e. ``Mn_ref = Mn* / gammadot`` so that the instantaneous Mason number
   ``Mn = gammadot Mn_ref`` is held at ``Mn*`` (``docs/units.md``). The rate is the observed one at the end
   of the previous interval (``log10_shear_rate``), so the controller lags a ramp by one interval. It needs
-  the rate in the observation: ``ThickeningControl-v0`` only.
+  the rate in the observation: ``ThickeningControl`` (not the stress-only env).
 * :class:`PIController` ("pi"): proportional–integral feedback on the log of the measured interval-averaged
-  ``eta_r`` (``ThickeningControl-v0``) or shear stress ``Sigma_xy`` (``ThickeningControlStressOnly-v0``)
+  ``eta_r`` (``ThickeningControl``) or shear stress ``Sigma_xy`` (``ThickeningControlStressOnly``)
   against a setpoint, acting on the strength action ``u`` (``u = 1`` strongest field, ``u < -0.9`` off):
   ``e_k = log10(y_k / y*)``, ``u_k = u_0 + K_p e_k + K_i sum_{j<=k} e_j`` with the integral frozen while
   ``u`` is saturated in the direction of the error (anti-windup; Åström & Murray, *Feedback Systems*,
@@ -64,13 +64,17 @@ CONTROLLERS = ("feedforward", "pi")
 
 DEFAULT_GRIDS: dict[str, dict[str, list[float]]] = {
     "feedforward": {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]},
-    "pi": {"setpoint": [4.0, 5.0, 6.0], "kp": [2.0, 6.0], "ki": [0.5, 2.0]},
+    "pi": {"kp": [2.0, 6.0], "ki": [0.5, 2.0]},
 }
 """Grids searched on the validation split when ``--grid`` is not given. ``mason_star`` spans the paper's
-thickening window (Mn 0.25–4, Fig. 3b). The PI setpoint is in the measured quantity's units: ``eta_r`` on
-``ThickeningControl-v0`` (below the default cap 6.5), ``Sigma_xy`` in ``eta gammadot_ref`` on the
-stress-only env (the same numbers: the schedules' rates are log-uniform around ``gammadot_ref``). The gains
-are in action units per decade of error."""
+thickening window (Mn 0.25–4, Fig. 3b). The PI gains are in action units per decade of error; its
+setpoints default to :data:`DEFAULT_SETPOINT_FRACTIONS` of the env's cap."""
+
+DEFAULT_SETPOINT_FRACTIONS = (0.7, 0.85, 1.0)
+"""Default PI setpoints as fractions of the env's ``eta_cap`` (the cap depends on the box: 6.5 at N = 64,
+:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`). The setpoint is in the measured quantity's units: ``eta_r``
+on ``ThickeningControl``, ``Sigma_xy`` in ``eta gammadot_ref`` on the stress-only env (the same numbers:
+the schedules' rates are log-uniform around ``gammadot_ref``)."""
 
 
 def _index(unwrapped: Any, label: str) -> int:
@@ -216,13 +220,15 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     return record
 
 
-def parse_grid(kind: str, items: Sequence[str]) -> dict[str, list[float]]:
-    """``["name=v1,v2", ...]`` to ``{name: [v1, v2]}``; the default grid of ``kind`` where ``items`` is
-    empty; ``ValueError`` naming a malformed item or a parameter ``kind`` does not take."""
-    if not items:
-        return {k: list(v) for k, v in DEFAULT_GRIDS[kind].items()}
+def parse_grid(kind: str, items: Sequence[str], eta_cap: float) -> dict[str, list[float]]:
+    """``["name=v1,v2", ...]`` to ``{name: [v1, v2]}``, each parameter not listed taking its default
+    (:data:`DEFAULT_GRIDS`; the PI setpoints :data:`DEFAULT_SETPOINT_FRACTIONS` of ``eta_cap``, rounded
+    to 0.01); ``ValueError`` naming a malformed item or a parameter ``kind`` does not take."""
+    defaults = {k: list(v) for k, v in DEFAULT_GRIDS[kind].items()}
+    if kind == "pi":
+        defaults["setpoint"] = [round(f * eta_cap, 2) for f in DEFAULT_SETPOINT_FRACTIONS]
     grid: dict[str, list[float]] = {}
-    allowed = set(DEFAULT_GRIDS[kind]) | ({"u0"} if kind == "pi" else set())
+    allowed = set(defaults) | ({"u0"} if kind == "pi" else set())
     for item in items:
         name, sep, values = item.partition("=")
         name = name.strip()
@@ -234,9 +240,8 @@ def parse_grid(kind: str, items: Sequence[str]) -> dict[str, list[float]]:
             grid[name] = [float(v) for v in values.split(",")]
         except ValueError:
             raise ValueError(f"--grid {name}: numbers separated by commas, got {values!r}") from None
-    missing = set(DEFAULT_GRIDS[kind]) - set(grid)
-    for name in missing:
-        grid[name] = list(DEFAULT_GRIDS[kind][name])
+    for name in set(defaults) - set(grid):
+        grid[name] = defaults[name]
     return grid
 
 
@@ -254,9 +259,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--env", default="dipenv/ThickeningControl-v0")
+    parser.add_argument("--env", default="dipenv/ThickeningControl-v1")
     parser.add_argument("--controller", required=True, choices=CONTROLLERS)
-    parser.add_argument("--grid", nargs="*", default=[], help="name=v1,v2 ... (default: DEFAULT_GRIDS)")
+    parser.add_argument(
+        "--grid",
+        nargs="*",
+        default=[],
+        help="name=v1,v2 ... (default: DEFAULT_GRIDS; PI setpoints 0.7, 0.85, 1 x the env's cap)",
+    )
     parser.add_argument("--tune-split", default="validation")
     parser.add_argument("--tune-episodes", type=int, default=None, help="default: the whole tuning split")
     parser.add_argument("--split", default="test")
@@ -275,16 +285,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     output_directory(PROG, args.out)
     env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
     try:
-        grid = parse_grid(args.controller, args.grid)
-        points = grid_points(grid)
-        for params in points:
-            make_controller(args.controller, params)
+        for params in grid_points(parse_grid(args.controller, args.grid, eta_cap=1.0)):
+            make_controller(args.controller, params)  # the arguments, checked before the env is made
     except ValueError as error:
         usage_error(PROG, str(error))
     env = checked_env(PROG, args.env, env_kwargs, progress=False)
     unwrapped: Any = env.unwrapped
     if not hasattr(unwrapped, "fixed_schedule"):
         usage_error(PROG, f"--env {args.env} is not a thickening-control environment")
+    grid = parse_grid(args.controller, args.grid, eta_cap=unwrapped.reward_function.target_viscosity)
+    points = grid_points(grid)
     try:
         make_controller(args.controller, points[0]).bind(env)
     except ValueError as error:
@@ -390,6 +400,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 __all__ = [
     "CONTROLLERS",
     "DEFAULT_GRIDS",
+    "DEFAULT_SETPOINT_FRACTIONS",
     "FeedForwardController",
     "PIController",
     "make_controller",

@@ -3,15 +3,17 @@
 ``import dipenv`` registers (Gymnasium 1.x has no plugin discovery; ``gym.make("dipenv:dipenv/...")``
 imports it too):
 
-* ``dipenv/FieldMagnitude-v0``: field strength, direction along y (N = 64, phi = 0.45, 0.25 strain per
+* ``dipenv/FieldMagnitude-v1``: field strength, direction along y (N = 300, phi = 0.45, 0.25 strain per
   action, 48 actions per episode);
-* ``dipenv/FieldVector-v0``: strength and direction;
+* ``dipenv/FieldVector-v1``: strength and direction;
+* ``dipenv/ThickeningControl-v1``: field strength while the shear rate follows a schedule of holds and
+  ramps in [0.2, 5] gammadot_ref (the rate is observed); ``dipenv/ThickeningControlStressOnly-v1``: the
+  same with only the measured stresses and the microstructure observed;
+* the ``-v0`` ids: the same environments in a box of N = 64, whose low-Mn viscosity plateau lies about one
+  unit of eta_r below the bulk's (docs/environments.md#box-size); kept because published results use them;
 * ``dipenv/FieldMagnitudeTiny-v0``, ``dipenv/FieldVectorTiny-v0``: N = 32, 0.02 strain per action, 10
   actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo;
-* ``dipenv/ThickeningControl-v0``: field strength while the shear rate follows a schedule of holds and
-  ramps in [0.2, 5] gammadot_ref (the rate is observed); ``dipenv/ThickeningControlStressOnly-v0``: the
-  same with only the measured stresses and the microstructure observed; ``dipenv/ThickeningControlTiny-v0``
-  for tests and the demo.
+  ``dipenv/ThickeningControlTiny-v0`` likewise.
 
 See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` and
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` for the full descriptions.
@@ -28,6 +30,7 @@ from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningContr
 
 __all__ = [
     "ENV_IDS",
+    "V1_KWARGS",
     "THICKENING_TINY_KWARGS",
     "TINY_KWARGS",
     "FieldMagnitudeEnv",
@@ -60,15 +63,25 @@ THICKENING_TINY_KWARGS: dict[str, Any] = {
 """The tiny thickening-control variant: the tiny box and intervals, with holds and ramps scaled to its
 0.2-time episodes."""
 
+V1_KWARGS: dict[str, Any] = {"n_particles": 300}
+"""What the ``-v1`` ids change against ``-v0``: the box. N = 300 (L = 14.1 a at phi = 0.45) is the smallest
+box of the box-size study whose episode-averaged eta_r matches N = 500's at Mn 0.5 and 1 (issue 24,
+docs/environments.md#box-size). The reward's target and cap follow from the tabulated (phi, N) defaults
+(:mod:`dipenv.rewards`)."""
+
 _THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
     "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", {}),
     "dipenv/FieldVector-v0": ("FieldVectorEnv", {}),
+    "dipenv/FieldMagnitude-v1": ("FieldMagnitudeEnv", V1_KWARGS),
+    "dipenv/FieldVector-v1": ("FieldVectorEnv", V1_KWARGS),
     "dipenv/FieldMagnitudeTiny-v0": ("FieldMagnitudeEnv", TINY_KWARGS),
     "dipenv/FieldVectorTiny-v0": ("FieldVectorEnv", TINY_KWARGS),
     "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", {}),
     "dipenv/ThickeningControlStressOnly-v0": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", {}),
     "dipenv/ThickeningControlTiny-v0": (f"{_THICKENING}:ThickeningControlEnv", THICKENING_TINY_KWARGS),
+    "dipenv/ThickeningControl-v1": (f"{_THICKENING}:ThickeningControlEnv", V1_KWARGS),
+    "dipenv/ThickeningControlStressOnly-v1": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", V1_KWARGS),
 }
 """Entry point and keyword arguments of each id. No ``max_episode_steps``: each env truncates itself after
 its own ``episode_steps`` (``gym.make(id, episode_steps=20)`` gives 20-action episodes, as ``settings()``

@@ -20,12 +20,18 @@ DEFAULT_ENERGY_WEIGHT = 1.0
 DEFAULT_FAILURE_PENALTY = 50.0
 """Reward of a failed step and of each step an episode loses by failing (units eta gammadot)."""
 
-DEFAULT_TARGET_VISCOSITY = {(0.45, 64): 6.1}
+DEFAULT_TARGET_VISCOSITY = {(0.45, 64): 6.1, (0.45, 300): 7.4}
 """Default targets by (volume fraction, N): the lowest time-averaged ``eta_r`` that a constant field
-reaches in ``dipenv/FieldMagnitude-v0`` (N = 64), rounded: 6.15 +- 0.28 at Mn = 0.5 and 6.23 +- 0.34 at
-Mn = 1 (mean and standard error over the 16 test start states, second half of each episode; no field:
-10.16, Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0``. The plateau depends on the box
-(docs/environments.md#box-size), so another N or volume fraction needs ``target_viscosity`` explicitly."""
+reaches over an episode of ``dipenv/FieldMagnitude`` (mean and standard error over the test start states,
+second half of each episode), rounded:
+
+* N = 64 (``-v0``): 6.15 +- 0.28 at Mn = 0.5 and 6.23 +- 0.34 at Mn = 1 (16 states; no field: 10.16,
+  Mn = 0.2: 6.87), from ``results/open_loop/FieldMagnitude-v0``;
+* N = 300 (``-v1``): 7.41 +- 0.26 at Mn = 0.5, 7.83 +- 0.43 at 0.8, 8.04 +- 0.25 at 1 (8 states each;
+  Mn = 0.2: 8.62 +- 0.16, Mn = 2: 9.22 +- 0.19), from ``results/box_size/env_episodes``.
+
+The plateau depends on the box (docs/environments.md#box-size), so another N or volume fraction needs
+``target_viscosity`` explicitly."""
 
 
 def default_target_viscosity(volume_fraction: float, n_particles: int = 64) -> float:
@@ -96,13 +102,12 @@ class ViscosityTargetReward:
         }
 
 
-DEFAULT_VISCOSITY_CAP = {(0.45, 64): 6.5}
+DEFAULT_VISCOSITY_CAP = {(0.45, 64): 6.5, (0.45, 300): 7.7}
 """Default ``eta_cap`` of the thickening-control reward by (volume fraction, N): the low-viscosity plateau
-that constant fields reach in ``dipenv/FieldMagnitude-v0`` at phi = 0.45, N = 64 (eta_r 6.15 +- 0.28 at
-Mn 0.5, 6.23 +- 0.34 at Mn 1, 6.03 at Mn 0.8; ``results/open_loop/FieldMagnitude-v0``), plus about one
-standard error, so that a suspension held on the plateau pays no thickening penalty. Provisional: the
-plateau depends on the box (docs/environments.md#box-size), and issue 24 has not yet fixed the
-environments' N."""
+that constant fields reach in ``dipenv/FieldMagnitude`` at phi = 0.45 (the values of
+:data:`DEFAULT_TARGET_VISCOSITY`; N = 64 also 6.03 at Mn 0.8), plus about one standard error, so that a
+suspension held on the plateau pays no thickening penalty: 6.5 at N = 64 (``-v0``), 7.7 at N = 300
+(``-v1``)."""
 
 
 def default_viscosity_cap(volume_fraction: float, n_particles: int = 64) -> float:

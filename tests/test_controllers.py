@@ -97,12 +97,15 @@ def test_pi_measures_stress_on_the_stress_only_env_and_checks_gains() -> None:
 
 
 def test_parse_grid() -> None:
-    assert parse_grid("feedforward", []) == {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]}
-    grid = parse_grid("pi", ["kp=1,2"])
-    assert grid["kp"] == [1.0, 2.0] and grid["setpoint"] == [4.0, 5.0, 6.0]
+    assert parse_grid("feedforward", [], eta_cap=6.5) == {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]}
+    grid = parse_grid("pi", ["kp=1,2"], eta_cap=6.5)
+    assert grid["kp"] == [1.0, 2.0] and grid["ki"] == [0.5, 2.0]
+    assert grid["setpoint"] == [4.55, 5.52, 6.5]  # 0.7, 0.85, 1 of the cap: the box sets the cap
+    assert parse_grid("pi", [], eta_cap=8.0)["setpoint"] == [5.6, 6.8, 8.0]
+    assert parse_grid("pi", ["setpoint=3"], eta_cap=8.0)["setpoint"] == [3.0]
     for bad, match in (("kp", "name=v1"), ("gain=1", "gain"), ("kp=a", "numbers")):
         with pytest.raises(ValueError, match=match):
-            parse_grid("pi", [bad])
+            parse_grid("pi", [bad], eta_cap=6.5)
 
 
 def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) -> None:

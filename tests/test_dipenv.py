@@ -22,6 +22,7 @@ import dipenv
 import sim
 from dipenv.envs.field_control import FieldMagnitudeEnv
 from dipenv.observations import observation_features
+from dipenv.rewards import DEFAULT_TARGET_VISCOSITY, DEFAULT_VISCOSITY_CAP
 
 TINY_IDS = ["dipenv/FieldMagnitudeTiny-v0", "dipenv/FieldVectorTiny-v0"]
 FAST = {
@@ -57,9 +58,33 @@ def test_every_id_is_registered() -> None:
         "dipenv/ThickeningControl-v0",
         "dipenv/ThickeningControlStressOnly-v0",
         "dipenv/ThickeningControlTiny-v0",
+        "dipenv/FieldMagnitude-v1",
+        "dipenv/FieldVector-v1",
+        "dipenv/ThickeningControl-v1",
+        "dipenv/ThickeningControlStressOnly-v1",
     }
     for env_id in dipenv.ENV_IDS:
         assert gym.spec(env_id).max_episode_steps is None  # the envs truncate at their own episode_steps
+
+
+V0_IDS = [env_id for env_id in dipenv.ENV_IDS if env_id.endswith("-v0")]
+"""The ids whose API is checked by running them (a ``-v1`` id is its ``-v0`` class in a bigger box)."""
+
+
+@pytest.mark.parametrize("env_id", [i for i in dipenv.ENV_IDS if i.endswith("-v1")])
+def test_v1_is_v0_in_the_box_of_the_box_size_study(env_id: str) -> None:
+    """Same class and arguments as ``-v0`` but N = 300, and the reward's default target or cap is the
+    one tabulated for (0.45, 300), not N = 64's (checked at make: no start state is generated)."""
+    v0 = gym.spec(env_id.replace("-v1", "-v0"))
+    v1 = gym.spec(env_id)
+    assert v1.entry_point == v0.entry_point
+    assert v1.kwargs == {**v0.kwargs, "n_particles": 300}
+    env = gym.make(env_id, progress=False).unwrapped
+    assert env.base_config.n_particles == 300
+    assert env.base_config.volume_fraction == 0.45
+    table = DEFAULT_VISCOSITY_CAP if "Thickening" in env_id else DEFAULT_TARGET_VISCOSITY
+    assert env.reward_function.target_viscosity == table[(0.45, 300)]
+    assert table[(0.45, 300)] != table[(0.45, 64)]
 
 
 def _wrapper_names(env: gym.Env) -> list[str]:
@@ -98,7 +123,7 @@ def test_bad_split_sizes_are_refused_at_make(split_sizes: object, needle: str) -
         assert needle in str(caught.value), caught.value
 
 
-@pytest.mark.parametrize("env_id", dipenv.ENV_IDS)
+@pytest.mark.parametrize("env_id", V0_IDS)
 def test_gymnasium_and_sb3_check_env(env_id: str) -> None:
     env = make(env_id, render_mode="rgb_array")
     gym_check_env(env.unwrapped, skip_render_check=False)

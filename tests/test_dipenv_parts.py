@@ -82,6 +82,7 @@ def test_reward_terms() -> None:
     with pytest.raises(ValueError, match=r"n_particles=100.*\(0.45, 64\)"):
         default_target_viscosity(0.45, 100)
     assert default_viscosity_cap(0.45, 64) == 6.5
+    assert default_target_viscosity(0.45, 300) == 7.4 and default_viscosity_cap(0.45, 300) == 7.7
     with pytest.raises(ValueError, match="eta_cap"):
         default_viscosity_cap(0.45, 150)  # the plateau depends on N: no default for another box
 

@@ -543,6 +543,9 @@ _DOC_COMMON = """
       regularisation became 1e-3 (was 1e-4) and the default target 6.1 (was 7.5); ``settings()``
       records both, so stored open-loop points and training runs of the earlier revision are not
       reused.
+    * v1 (2026-12-03): N = 300 instead of 64, the box-size study's smallest box whose episode-averaged
+      eta_r matches the bulk's (docs/environments.md#box-size); the default target is N = 300's
+      plateau (:data:`dipenv.rewards.DEFAULT_TARGET_VISCOSITY`). Everything else is as v0.
     """
 
 

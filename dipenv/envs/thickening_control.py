@@ -109,6 +109,8 @@ class ThickeningControlEnv(FieldControlEnv):
     ## Version History
 
     * v0: initial version (2026-12-02).
+    * v1 (2026-12-03): N = 300 instead of 64 (docs/environments.md#box-size), and the default cap is
+      N = 300's plateau (:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`). Everything else is as v0.
     """
 
     __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
