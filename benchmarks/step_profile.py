@@ -29,6 +29,7 @@ One core (``NUMBA_NUM_THREADS=1``); run it alone, the second core busy shifts ev
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import statistics
@@ -63,8 +64,6 @@ def _library_state(n: int) -> SimulationState | None:
     """Test start state 0 of the cached N-particle library at the environments' settings, if any."""
     root = Path(os.environ.get("DIPENV_CACHE_DIR", Path.home() / ".cache" / "dipenv")) / "states"
     for library in sorted(root.glob("*/library.json")) if root.exists() else []:
-        import json
-
         meta = json.loads(library.read_text())
         c = meta.get("config", {})
         if (
@@ -104,6 +103,30 @@ def timed(fn: Callable[[], object], reps: int) -> tuple[float, float]:
         fn()
         times.append(time.perf_counter() - t0)
     return 1e3 * min(times), 1e3 * statistics.median(times)
+
+
+def whole_steps(
+    n: int, mason: float, state: SimulationState, steps: int, repeats: int = 3
+) -> dict[str, float]:
+    """``steps`` compiled steps from ``state``, ``repeats`` times from the same state: ms per step (minimum
+    and median over the repeats), steps per strain, s per strain (at the minimum), mean PCG iterations."""
+    config = config_for(n, mason)
+    per_step = []
+    for _ in range(repeats):
+        simulation = Simulation(config, state=state, keep_records=False)
+        t0 = time.perf_counter()
+        chunk = simulation.advance(steps)
+        per_step.append((time.perf_counter() - t0) / steps)
+    mean_dt = float(chunk.time_step.mean())
+    return {
+        "n": n,
+        "mason": mason,
+        "ms_step": 1e3 * min(per_step),
+        "ms_step_median": 1e3 * statistics.median(per_step),
+        "steps_per_strain": 1.0 / mean_dt,
+        "seconds_per_strain": min(per_step) / mean_dt,
+        "iterations_mean": float(chunk.solver_iterations.mean()),
+    }
 
 
 def profile(
@@ -279,21 +302,14 @@ def profile(
         f"{sweeps} sweeps",
     )
 
-    # whole compiled steps from the warmed state (a copy per repeat, min/median per step)
-    per_step = []
-    for _ in range(3):
-        sim2 = Simulation(config, state=state, keep_records=False)
-        t0 = time.perf_counter()
-        chunk = sim2.advance(steps)
-        per_step.append((time.perf_counter() - t0) / steps)
-    mean_dt = float(chunk.time_step.mean())
+    whole = whole_steps(n, mason, state, steps)
     rows.append(
         (
             "whole step (advance)",
-            1e3 * min(per_step),
-            1e3 * statistics.median(per_step),
-            f"{chunk.solver_iterations.mean():.1f} iterations, {1.0 / mean_dt:.0f} steps/strain, "
-            f"{min(per_step) / mean_dt:.2f} s/strain",
+            whole["ms_step"],
+            whole["ms_step_median"],
+            f"{whole['iterations_mean']:.1f} iterations, {whole['steps_per_strain']:.0f} steps/strain, "
+            f"{whole['seconds_per_strain']:.2f} s/strain",
         )
     )
 
@@ -374,11 +390,21 @@ def main() -> None:
     parser.add_argument("--reps", type=int, default=40)
     parser.add_argument("--state-dir", type=Path, default=Path("/tmp/step_profile_states"))
     parser.add_argument("--env-steps", type=int, default=0)
+    parser.add_argument(
+        "--whole-only",
+        action="store_true",
+        help="only the whole compiled steps, one JSON line per Mason number (benchmarks/compare_trees.py)",
+    )
     args = parser.parse_args()
-    print(f"sim from {Path(sim.__file__).parent}; load {os.getloadavg()[0]:.2f}")
     Simulation(SimulationConfig(n_particles=64, volume_fraction=0.3, strain=0.01, mason_number=1.0)).advance(
         3
     )
+    if args.whole_only:
+        for mason in [float(m) for m in args.mason.split(",")]:
+            state = warmed_state(args.n, mason, args.warmup_strain, args.state_dir)
+            print(json.dumps(whole_steps(args.n, mason, state, args.steps)), flush=True)
+        return
+    print(f"sim from {Path(sim.__file__).parent}; load {os.getloadavg()[0]:.2f}")
     for mason in [float(m) for m in args.mason.split(",")]:
         state = warmed_state(args.n, mason, args.warmup_strain, args.state_dir)
         rows = profile(args.n, mason, state, args.steps, args.reps)
