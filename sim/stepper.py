@@ -46,7 +46,7 @@ from sim.dipolophoresis.ewald import dip_far_field
 from sim.dipolophoresis.near_field_blend import add_near_field_corrections
 from sim.geometry.box import lees_edwards_offset, wrap_positions
 from sim.geometry.overlap import remove_overlaps
-from sim.hydrodynamics.lubrication import pair_stresslets, strain_forcing
+from sim.hydrodynamics.lubrication import pair_stresslet_sum, strain_forcing
 from sim.hydrodynamics.resistance_solver import solve_resistance
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
 from sim.integrators import shift_crossed_velocities, variable_step_adams_bashforth
@@ -126,15 +126,12 @@ def hydrodynamic_term(
         velocity[p, 0] += params.shear_rate * positions[p, 1]
 
     volume = params.box_length**3
-    stresslets = pair_stresslets(n, pairs, units, scalars, disturbance, strain_rate)
+    stresslet_sum = pair_stresslet_sum(pairs, units, scalars, disturbance, strain_rate)
     for a in range(3):
         for b in range(3):
             stress[SOLVENT, a, b] = 2.0 * strain_rate[a, b]
             stress[STOKES_DRAG, a, b] = n * STRESSLET_DRAG * strain_rate[a, b] / volume
-            s = 0.0
-            for p in range(n):
-                s += stresslets[p, a, b]
-            stress[LUBRICATION, a, b] = s / volume
+            stress[LUBRICATION, a, b] = stresslet_sum[a, b] / volume
             stress[REPULSION, a, b] = -virial[a, b] / volume
     min_gap = math.inf
     for k in range(gaps.shape[0]):
