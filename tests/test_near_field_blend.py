@@ -130,3 +130,30 @@ def test_stress_correction_equals_exact_minus_far_field(r: float, angle: float) 
     np.testing.assert_allclose(diff[index["dep_virial"]], scale * d_virial, rtol=1e-10, atol=1e-16)
     np.testing.assert_allclose(diff[index["dep_stresslet"]], 2 * scale * s_dep, rtol=1e-10, atol=1e-16)
     assert np.abs(diff[index["icep_pair"]]).max() > 1e-6  # the correction is not trivially zero
+
+
+@pytest.mark.parametrize("near_code", [0, 1, 2])
+def test_near_contact_functions_match_the_table_kernels(near_code: int) -> None:
+    """Below the first table node the blend evaluates all 16 near-contact forms from one logarithm
+    (``exp(p ln xi)`` for ``xi^p``); independent numbers: the tables' own kernels (``pow`` per function),
+    at gaps from below the floor (1e-7) to just under the first node, to 1e-13 relative."""
+    from sim.dipolophoresis.near_field import near_field_kernel
+    from sim.dipolophoresis.near_field_blend import _pair_functions
+    from sim.dipolophoresis.near_field_stress import dep_force_kernel, near_field_stress_kernel
+    from sim.step_parameters import NEAR_FIELD_TABLES
+
+    grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = NEAR_FIELD_TABLES
+    want_icep, want_dep = near_code != 1, near_code != 0
+    gaps = np.concatenate([np.geomspace(1e-7, 0.999 * grid[4], 40), [grid[5], 0.5 * grid[5]]])
+    for gap in gaps:
+        r = 2.0 + gap
+        got = np.array(_pair_functions(r, near_code, want_icep, want_dep, NEAR_FIELD_TABLES))
+        velocity = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
+        icep = near_field_stress_kernel(r, 0, stress_grid, stress_coefficients, stress_asymptotics)
+        dep = near_field_stress_kernel(r, 1, stress_grid, stress_coefficients, stress_asymptotics)
+        force = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
+        expected = np.array(
+            [*velocity, *(icep if want_icep else (0.0,) * 4), *(dep if want_dep else (0.0,) * 4)]
+            + list(force if want_dep else (0.0,) * 3)
+        )
+        np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(expected).max())
