@@ -42,8 +42,8 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.dipolophoresis.ewald import dip_far_field
-from sim.dipolophoresis.near_field_blend import add_near_field_corrections
+from sim.dipolophoresis.ewald import collects_near_pairs, dip_far_field_with_pairs
+from sim.dipolophoresis.near_field_blend import add_near_field_corrections, add_pair_corrections
 from sim.geometry.box import lees_edwards_offset, wrap_positions
 from sim.geometry.overlap import remove_overlaps
 from sim.hydrodynamics.lubrication import pair_stresslet_sum, strain_forcing
@@ -171,11 +171,36 @@ def dipolophoresis_term(
         return np.zeros((n, 3))
     offset = lees_edwards_offset(strain, params.box_length)
     e = field.direction
-    velocity, icep_pair, dep_virial = dip_far_field(
-        positions, params.box_length, offset, e, field.icep_weight, field.dep_weight, field.plan
+    velocity, icep_pair, dep_virial, near_pairs, near_separations = dip_far_field_with_pairs(
+        positions,
+        params.box_length,
+        offset,
+        e,
+        field.icep_weight,
+        field.dep_weight,
+        field.plan,
+        field.near_field_cutoff,
     )
     dep_stresslet = np.zeros((3, 3))
-    if field.near_field_cutoff > 0.0:
+    if field.near_field_cutoff > 0.0 and collects_near_pairs(
+        field.plan, params.box_length, field.near_field_cutoff
+    ):
+        add_pair_corrections(  # the pairs the real-space sum found closer than the cut-off
+            near_pairs,
+            near_separations,
+            params.box_length,
+            e,
+            field.icep_weight,
+            field.dep_weight,
+            field.near_field_cutoff,
+            field.near_field_taper,
+            field.near_field_tables,
+            velocity,
+            icep_pair,
+            dep_virial,
+            dep_stresslet,
+        )
+    elif field.near_field_cutoff > 0.0:
         add_near_field_corrections(
             positions,
             params.box_length,

@@ -157,3 +157,72 @@ def test_near_contact_functions_match_the_table_kernels(near_code: int) -> None:
             + list(force if want_dep else (0.0,) * 3)
         )
         np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize(("n", "accuracy"), [(64, 1e-4), (64, 1e-6), (300, 1e-4)])
+def test_real_space_sum_hands_over_the_near_pairs(n: int, accuracy: float) -> None:
+    """The pairs closer than the blend's cut-off, as the Ewald real-space sum collects them (cell order,
+    several images per pair at N = 64 where r_c > L/2), against the independent cell-list pair list
+    ``build_pair_list``: the same set of pairs, separations to 1e-12 a, and the blended DIP velocities
+    and stresses from either list equal to 1e-12 relative."""
+    from sim.dipolophoresis.ewald import collects_near_pairs, dip_far_field_with_pairs, ewald_plan
+    from sim.dipolophoresis.near_field_blend import add_near_field_corrections, add_pair_corrections
+    from sim.geometry.box import lees_edwards_offset
+    from sim.geometry.configurations import random_packing
+    from sim.geometry.neighbors import build_pair_list
+    from sim.step_parameters import NEAR_FIELD_TABLES
+
+    positions = random_packing(n, 0.45, 5, min_gap=1e-4)
+    box = SimulationConfig(n_particles=n, volume_fraction=0.45).box_length
+    plan = ewald_plan(box, n, accuracy)
+    e = np.array([0.0, 1.0, 0.0])
+    for strain in (0.0, 0.37, 0.81):
+        offset = float(lees_edwards_offset(strain, box))
+        assert collects_near_pairs(plan, box, 4.0)
+        v, icep, dep, pairs, seps = dip_far_field_with_pairs(positions, box, offset, e, 1.0, 1.0, plan, 4.0)
+        ref_pairs, ref_seps = build_pair_list(positions, box, offset, 4.0)
+        flip = pairs[:, 0] > pairs[:, 1]
+        ordered = np.where(flip[:, None], pairs[:, ::-1], pairs)
+        signed = np.where(flip[:, None], -seps, seps)
+        key = ordered[:, 0] * n + ordered[:, 1]
+        rank = np.argsort(key)
+        np.testing.assert_array_equal(ordered[rank], ref_pairs)
+        np.testing.assert_allclose(signed[rank], ref_seps, rtol=0, atol=1e-12)
+        outputs = []
+        for shared in (True, False):
+            vel, s_icep, s_dep, s_dep_stresslet = v.copy(), icep.copy(), dep.copy(), np.zeros((3, 3))
+            if shared:
+                add_pair_corrections(
+                    pairs,
+                    seps,
+                    box,
+                    e,
+                    1.0,
+                    1.0,
+                    4.0,
+                    0.5,
+                    NEAR_FIELD_TABLES,
+                    vel,
+                    s_icep,
+                    s_dep,
+                    s_dep_stresslet,
+                )
+            else:
+                add_near_field_corrections(
+                    positions,
+                    box,
+                    offset,
+                    e,
+                    1.0,
+                    1.0,
+                    4.0,
+                    0.5,
+                    NEAR_FIELD_TABLES,
+                    vel,
+                    s_icep,
+                    s_dep,
+                    s_dep_stresslet,
+                )
+            outputs.append((vel, s_icep, s_dep, s_dep_stresslet))
+        for got, expected in zip(outputs[0], outputs[1], strict=True):
+            np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

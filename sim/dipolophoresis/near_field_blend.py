@@ -240,10 +240,54 @@ def add_near_field_corrections(
     Returns:
         The number of pairs closer than ``r_cut``.
     """
+    pairs, separations = build_pair_list(positions, box_length, offset, r_cut)
+    return add_pair_corrections(
+        pairs,
+        separations,
+        box_length,
+        e,
+        icep_weight,
+        dep_weight,
+        r_cut,
+        width,
+        tables,
+        velocity,
+        icep_stress,
+        dep_virial,
+        dep_stresslet,
+    )
+
+
+@njit(cache=True)
+def add_pair_corrections(
+    pairs: np.ndarray,
+    separations: np.ndarray,
+    box_length: float,
+    e: np.ndarray,
+    icep_weight: float,
+    dep_weight: float,
+    r_cut: float,
+    width: float,
+    tables,
+    velocity: np.ndarray,
+    icep_stress: np.ndarray,
+    dep_virial: np.ndarray,
+    dep_stresslet: np.ndarray,
+) -> int:
+    """:func:`add_near_field_corrections` for a given list of the pairs closer than ``r_cut``.
+
+    Args:
+        pairs: (K, 2) int64 particle indices ``(i, j)``, each pair once, in any order (e.g. the list
+            of :func:`sim.dipolophoresis.ewald.dip_far_field_with_pairs`).
+        separations: (K, 3) ``x_j - x_i`` of each pair (its image closer than ``L/2``; units a).
+        The other arguments as :func:`add_near_field_corrections`.
+
+    Returns:
+        K.
+    """
     near_code, far_code = mechanism_codes(icep_weight, dep_weight)
     want_icep = icep_weight > 0.0
     want_dep = dep_weight > 0.0
-    pairs, separations = build_pair_list(positions, box_length, offset, r_cut)
     volume = box_length**3
     xh = np.empty(3)
     d_force = np.empty(3)
