@@ -216,7 +216,15 @@ def profile(
     )
     disturbance = np.empty_like(sol)
     disturbance[order] = sol
-    add("lubrication stresslets", lambda: pair_stresslets(n, pairs, units, sc, disturbance, e_inf))
+    from sim.hydrodynamics import lubrication
+
+    if hasattr(lubrication, "pair_stresslet_sum"):  # what the step uses (issue 22), else the older path
+        add(
+            "lubrication stress (sum)",
+            lambda: lubrication.pair_stresslet_sum(pairs, units, sc, disturbance, e_inf),
+        )
+    else:
+        add("lubrication stresslets", lambda: pair_stresslets(n, pairs, units, sc, disturbance, e_inf))
 
     q = np.outer(field.direction, field.direction) - np.eye(3) / 3.0
     a_s = ICEP_S_COEFFICIENT * field.icep_weight
@@ -278,7 +286,46 @@ def profile(
             np.zeros((3, 3)),
         )
 
-    add("near-field blend + DIP pair stresses", blend, "pair list included")
+    add("near-field blend + DIP pair stresses", blend, "own pair list included")
+    if hasattr(ewald, "dip_far_field_with_pairs"):  # the step's path since issue 22: shared enumeration
+        from sim.dipolophoresis.near_field_blend import add_pair_corrections
+
+        def real_with_pairs() -> tuple:
+            return ewald._real_space_sums(
+                x,
+                length,
+                offset,
+                plan.splitting,
+                plan.real_cutoff,
+                q,
+                a_s,
+                a_t,
+                np.zeros((n, 3)),
+                np.zeros((2, 6)),
+                field.near_field_cutoff,
+            )
+
+        shared_pairs, shared_separations = real_with_pairs()
+        add("Ewald real space + near pairs", real_with_pairs, f"{shared_pairs.shape[0]} near pairs")
+
+        def blend_given() -> None:
+            add_pair_corrections(
+                shared_pairs,
+                shared_separations,
+                length,
+                field.direction,
+                field.icep_weight,
+                field.dep_weight,
+                field.near_field_cutoff,
+                field.near_field_taper,
+                field.near_field_tables,
+                np.zeros((n, 3)),
+                np.zeros((3, 3)),
+                np.zeros((3, 3)),
+                np.zeros((3, 3)),
+            )
+
+        add("near-field blend, given pairs", blend_given)
     stress = np.zeros((N_CONTRIBUTIONS, 3, 3))
     add("shear term (whole)", lambda: hydrodynamic_term(x, s.strain, guess, params, stress))
     add("DIP term (whole)", lambda: dipolophoresis_term(x, s.strain, params, field, stress))
