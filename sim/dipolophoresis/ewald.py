@@ -628,8 +628,12 @@ def _real_space_sums(
         if count == 0:
             continue
         if want_near:
-            if near_count + count > near_pairs.shape[0]:  # grow (rare: the start holds ~3x the typical)
-                capacity = 2 * (near_count + count)
+            found = 0
+            for j in range(count):  # branch-free selection (``picked`` is free once the pairs are in)
+                picked[found] = j
+                found += 1 if br2[j] < near2 else 0
+            if near_count + found > near_pairs.shape[0]:  # grow (rare: the start holds ~3x the typical)
+                capacity = 2 * (near_count + found)
                 grown_pairs = np.empty((capacity, 2), dtype=np.int64)
                 grown_separations = np.empty((capacity, 3))
                 grown_pairs[:near_count] = near_pairs[:near_count]
@@ -637,13 +641,14 @@ def _real_space_sums(
                 near_pairs = grown_pairs
                 near_separations = grown_separations
             alpha = order[i]
-            for j in range(count):  # branch-free compaction; x_j - x_i = -(x_alpha - x_beta)
+            for t in range(found):  # x_j - x_i = -(x_alpha - x_beta)
+                j = picked[t]
                 near_pairs[near_count, 0] = alpha
                 near_pairs[near_count, 1] = order[partner[j]]
                 near_separations[near_count, 0] = -bx[j]
                 near_separations[near_count, 1] = -by[j]
                 near_separations[near_count, 2] = -bz[j]
-                near_count += 1 if br2[j] < near2 else 0
+                near_count += 1
         t = _real_space_block(count, bx, by, bz, br2, bgauss, xi, qt, a_s, a_t, ux, uy, uz, erfc_buf)
         for j in range(6):
             sums[0, j] += t[j]
