@@ -641,8 +641,8 @@ def _real_space_sums(
                 near_pairs = grown_pairs
                 near_separations = grown_separations
             alpha = order[i]
-            for t in range(found):  # x_j - x_i = -(x_alpha - x_beta)
-                j = picked[t]
+            for selected in range(found):  # x_j - x_i = -(x_alpha - x_beta)
+                j = picked[selected]
                 near_pairs[near_count, 0] = alpha
                 near_pairs[near_count, 1] = order[partner[j]]
                 near_separations[near_count, 0] = -bx[j]
