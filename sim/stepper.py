@@ -42,11 +42,11 @@ import math
 import numpy as np
 from numba import njit
 
-from sim.dipolophoresis.ewald import dip_far_field
-from sim.dipolophoresis.near_field_blend import add_near_field_corrections
+from sim.dipolophoresis.ewald import collects_near_pairs, dip_far_field_with_pairs
+from sim.dipolophoresis.near_field_blend import add_near_field_corrections, add_pair_corrections
 from sim.geometry.box import lees_edwards_offset, wrap_positions
 from sim.geometry.overlap import remove_overlaps
-from sim.hydrodynamics.lubrication import pair_stresslets, strain_forcing
+from sim.hydrodynamics.lubrication import pair_stresslet_sum, strain_forcing
 from sim.hydrodynamics.resistance_solver import solve_resistance
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
 from sim.integrators import shift_crossed_velocities, variable_step_adams_bashforth
@@ -126,15 +126,12 @@ def hydrodynamic_term(
         velocity[p, 0] += params.shear_rate * positions[p, 1]
 
     volume = params.box_length**3
-    stresslets = pair_stresslets(n, pairs, units, scalars, disturbance, strain_rate)
+    stresslet_sum = pair_stresslet_sum(pairs, units, scalars, disturbance, strain_rate)
     for a in range(3):
         for b in range(3):
             stress[SOLVENT, a, b] = 2.0 * strain_rate[a, b]
             stress[STOKES_DRAG, a, b] = n * STRESSLET_DRAG * strain_rate[a, b] / volume
-            s = 0.0
-            for p in range(n):
-                s += stresslets[p, a, b]
-            stress[LUBRICATION, a, b] = s / volume
+            stress[LUBRICATION, a, b] = stresslet_sum[a, b] / volume
             stress[REPULSION, a, b] = -virial[a, b] / volume
     min_gap = math.inf
     for k in range(gaps.shape[0]):
@@ -174,11 +171,36 @@ def dipolophoresis_term(
         return np.zeros((n, 3))
     offset = lees_edwards_offset(strain, params.box_length)
     e = field.direction
-    velocity, icep_pair, dep_virial = dip_far_field(
-        positions, params.box_length, offset, e, field.icep_weight, field.dep_weight, field.plan
+    velocity, icep_pair, dep_virial, near_pairs, near_separations = dip_far_field_with_pairs(
+        positions,
+        params.box_length,
+        offset,
+        e,
+        field.icep_weight,
+        field.dep_weight,
+        field.plan,
+        field.near_field_cutoff,
     )
     dep_stresslet = np.zeros((3, 3))
-    if field.near_field_cutoff > 0.0:
+    if field.near_field_cutoff > 0.0 and collects_near_pairs(
+        field.plan, params.box_length, field.near_field_cutoff
+    ):
+        add_pair_corrections(  # the pairs the real-space sum found closer than the cut-off
+            near_pairs,
+            near_separations,
+            params.box_length,
+            e,
+            field.icep_weight,
+            field.dep_weight,
+            field.near_field_cutoff,
+            field.near_field_taper,
+            field.near_field_tables,
+            velocity,
+            icep_pair,
+            dep_virial,
+            dep_stresslet,
+        )
+    elif field.near_field_cutoff > 0.0:
         add_near_field_corrections(
             positions,
             params.box_length,

@@ -130,3 +130,99 @@ def test_stress_correction_equals_exact_minus_far_field(r: float, angle: float) 
     np.testing.assert_allclose(diff[index["dep_virial"]], scale * d_virial, rtol=1e-10, atol=1e-16)
     np.testing.assert_allclose(diff[index["dep_stresslet"]], 2 * scale * s_dep, rtol=1e-10, atol=1e-16)
     assert np.abs(diff[index["icep_pair"]]).max() > 1e-6  # the correction is not trivially zero
+
+
+@pytest.mark.parametrize("near_code", [0, 1, 2])
+def test_near_contact_functions_match_the_table_kernels(near_code: int) -> None:
+    """Below the first table node the blend evaluates all 16 near-contact forms from one logarithm
+    (``exp(p ln xi)`` for ``xi^p``); independent numbers: the tables' own kernels (``pow`` per function),
+    at gaps from below the floor (1e-7) to just under the first node, to 1e-13 relative."""
+    from sim.dipolophoresis.near_field import near_field_kernel
+    from sim.dipolophoresis.near_field_blend import _pair_functions
+    from sim.dipolophoresis.near_field_stress import dep_force_kernel, near_field_stress_kernel
+    from sim.step_parameters import NEAR_FIELD_TABLES
+
+    grid, coefficients, asymptotics, stress_grid, stress_coefficients, stress_asymptotics = NEAR_FIELD_TABLES
+    want_icep, want_dep = near_code != 1, near_code != 0
+    gaps = np.concatenate([np.geomspace(1e-7, 0.999 * grid[4], 40), [grid[5], 0.5 * grid[5]]])
+    for gap in gaps:
+        r = 2.0 + gap
+        got = np.array(_pair_functions(r, near_code, want_icep, want_dep, NEAR_FIELD_TABLES))
+        velocity = near_field_kernel(r, near_code, grid, coefficients, asymptotics)
+        icep = near_field_stress_kernel(r, 0, stress_grid, stress_coefficients, stress_asymptotics)
+        dep = near_field_stress_kernel(r, 1, stress_grid, stress_coefficients, stress_asymptotics)
+        force = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
+        expected = np.array(
+            [*velocity, *(icep if want_icep else (0.0,) * 4), *(dep if want_dep else (0.0,) * 4)]
+            + list(force if want_dep else (0.0,) * 3)
+        )
+        np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize(("n", "accuracy"), [(64, 1e-4), (64, 1e-6), (300, 1e-4)])
+def test_real_space_sum_hands_over_the_near_pairs(n: int, accuracy: float) -> None:
+    """The pairs closer than the blend's cut-off, as the Ewald real-space sum collects them (cell order,
+    several images per pair at N = 64 where r_c > L/2), against the independent cell-list pair list
+    ``build_pair_list``: the same set of pairs, separations to 1e-12 a, and the blended DIP velocities
+    and stresses from either list equal to 1e-12 relative."""
+    from sim.dipolophoresis.ewald import collects_near_pairs, dip_far_field_with_pairs, ewald_plan
+    from sim.dipolophoresis.near_field_blend import add_near_field_corrections, add_pair_corrections
+    from sim.geometry.box import lees_edwards_offset
+    from sim.geometry.configurations import random_packing
+    from sim.geometry.neighbors import build_pair_list
+    from sim.step_parameters import NEAR_FIELD_TABLES
+
+    positions = random_packing(n, 0.45, 5, min_gap=1e-4)
+    box = SimulationConfig(n_particles=n, volume_fraction=0.45).box_length
+    plan = ewald_plan(box, n, accuracy)
+    e = np.array([0.0, 1.0, 0.0])
+    for strain in (0.0, 0.37, 0.81):
+        offset = float(lees_edwards_offset(strain, box))
+        assert collects_near_pairs(plan, box, 4.0)
+        v, icep, dep, pairs, seps = dip_far_field_with_pairs(positions, box, offset, e, 1.0, 1.0, plan, 4.0)
+        ref_pairs, ref_seps = build_pair_list(positions, box, offset, 4.0)
+        flip = pairs[:, 0] > pairs[:, 1]
+        ordered = np.where(flip[:, None], pairs[:, ::-1], pairs)
+        signed = np.where(flip[:, None], -seps, seps)
+        key = ordered[:, 0] * n + ordered[:, 1]
+        rank = np.argsort(key)
+        np.testing.assert_array_equal(ordered[rank], ref_pairs)
+        np.testing.assert_allclose(signed[rank], ref_seps, rtol=0, atol=1e-12)
+        outputs = []
+        for shared in (True, False):
+            vel, s_icep, s_dep, s_dep_stresslet = v.copy(), icep.copy(), dep.copy(), np.zeros((3, 3))
+            if shared:
+                add_pair_corrections(
+                    pairs,
+                    seps,
+                    box,
+                    e,
+                    1.0,
+                    1.0,
+                    4.0,
+                    0.5,
+                    NEAR_FIELD_TABLES,
+                    vel,
+                    s_icep,
+                    s_dep,
+                    s_dep_stresslet,
+                )
+            else:
+                add_near_field_corrections(
+                    positions,
+                    box,
+                    offset,
+                    e,
+                    1.0,
+                    1.0,
+                    4.0,
+                    0.5,
+                    NEAR_FIELD_TABLES,
+                    vel,
+                    s_icep,
+                    s_dep,
+                    s_dep_stresslet,
+                )
+            outputs.append((vel, s_icep, s_dep, s_dep_stresslet))
+        for got, expected in zip(outputs[0], outputs[1], strict=True):
+            np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())

@@ -107,6 +107,8 @@ __all__ = [
     "METHOD_SPME",
     "EwaldPlan",
     "dip_far_field",
+    "dip_far_field_with_pairs",
+    "collects_near_pairs",
     "ewald_plan",
     "estimated_errors",
 ]
@@ -477,7 +479,8 @@ def _real_space_sums(
     a_t: float,
     velocity: np.ndarray,
     sums: np.ndarray,
-) -> None:
+    near_cutoff: float = 0.0,
+) -> tuple[np.ndarray, np.ndarray]:
     """Real-space sums over all pair images within ``cutoff`` (any ``r_c``; several images if ``> L/2``).
 
     Cell list in the sheared fractional coordinates ``s`` (:func:`_fractional_coordinates`; the lattice
@@ -495,6 +498,13 @@ def _real_space_sums(
     images, present only for ``r_c > L``, by :func:`_self_image_sums`). Candidate distances and the
     compaction of the pairs within ``r_c`` are branch-free loops, the pair terms are evaluated by
     :func:`_real_space_block`. Accumulates into ``velocity`` (N, 3) and ``sums`` (2, 6).
+
+    With ``0 < near_cutoff <= min(cutoff, L/2)`` the pairs closer than ``near_cutoff`` are also returned,
+    as the near-field blend needs them (:func:`sim.dipolophoresis.near_field_blend.add_near_field_corrections`
+    takes them instead of building a pair list of its own: at N = 300 both were an all-pairs scan of
+    the same box, issue 22): ``pairs`` (K, 2) int64 particle indices and ``separations`` (K, 3) the
+    separation ``x_j - x_i`` of ``pairs[k] = (i, j)`` (the one image closer than ``L/2``), in the order
+    the sums visit them (cell order, not sorted). Otherwise two empty arrays.
     """
     n = positions.shape[0]
     rc2 = cutoff * cutoff
@@ -551,6 +561,11 @@ def _real_space_sums(
     uy = np.empty(capacity)
     uz = np.empty(capacity)
     vsorted = np.zeros((n, 3))
+    want_near = near_cutoff > 0.0
+    near2 = near_cutoff * near_cutoff
+    near_count = 0
+    near_pairs = np.empty((16 * n if want_near else 0, 2), dtype=np.int64)
+    near_separations = np.empty((near_pairs.shape[0], 3))
     for i in range(n):
         c = cell[order[i]]
         c3 = c % n3
@@ -612,6 +627,28 @@ def _real_space_sums(
                     start = count
         if count == 0:
             continue
+        if want_near:
+            found = 0
+            for j in range(count):  # branch-free selection (``picked`` is free once the pairs are in)
+                picked[found] = j
+                found += 1 if br2[j] < near2 else 0
+            if near_count + found > near_pairs.shape[0]:  # grow (rare: the start holds ~3x the typical)
+                capacity = 2 * (near_count + found)
+                grown_pairs = np.empty((capacity, 2), dtype=np.int64)
+                grown_separations = np.empty((capacity, 3))
+                grown_pairs[:near_count] = near_pairs[:near_count]
+                grown_separations[:near_count] = near_separations[:near_count]
+                near_pairs = grown_pairs
+                near_separations = grown_separations
+            alpha = order[i]
+            for selected in range(found):  # x_j - x_i = -(x_alpha - x_beta)
+                j = picked[selected]
+                near_pairs[near_count, 0] = alpha
+                near_pairs[near_count, 1] = order[partner[j]]
+                near_separations[near_count, 0] = -bx[j]
+                near_separations[near_count, 1] = -by[j]
+                near_separations[near_count, 2] = -bz[j]
+                near_count += 1
         t = _real_space_block(count, bx, by, bz, br2, bgauss, xi, qt, a_s, a_t, ux, uy, uz, erfc_buf)
         for j in range(6):
             sums[0, j] += t[j]
@@ -637,6 +674,7 @@ def _real_space_sums(
         velocity[p, 2] += vsorted[i, 2]
     if cutoff > box_length:
         _self_image_sums(box_length, offset, xi, cutoff, q, a_s, a_t, n, sums)
+    return near_pairs[:near_count], near_separations[:near_count]
 
 
 # --------------------------------------------------------------------------------------------------
@@ -821,6 +859,32 @@ def _wave_row(
         coef[14, t] = 2.0 * (four_pi * szz * big_g + kzz * cv + v_diag)
 
 
+@njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy", inline="always")
+def _lane_sum(values: np.ndarray, count: int) -> float:
+    """``sum(values[:count])`` in eight interleaved partial sums, added up in a fixed order at the end.
+
+    One running sum is a chain of dependent additions (4 cycles each): the structure factor of each wave
+    vector spent most of its time waiting on it, since the reproducible fast-math flags
+    (:data:`sim.numba_cache.REPRODUCIBLE_FASTMATH`) forbid LLVM to reassociate the sum itself. Written
+    out here, the association is part of the source, so compiled and cache-loaded code agree bit for
+    bit, and the eight lanes fill one AVX-512 register (or two AVX2 ones).
+    """
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = 0.0
+    full = count - count % 8
+    for p in range(0, full, 8):
+        a0 += values[p]
+        a1 += values[p + 1]
+        a2 += values[p + 2]
+        a3 += values[p + 3]
+        a4 += values[p + 4]
+        a5 += values[p + 5]
+        a6 += values[p + 6]
+        a7 += values[p + 7]
+    for p in range(full, count):
+        a0 += values[p]
+    return ((a0 + a1) + (a2 + a3)) + ((a4 + a5) + (a6 + a7))
+
+
 @njit(cache=True, fastmath=REPRODUCIBLE_FASTMATH, error_model="numpy")
 def _ewald_fourier_sums(
     positions: np.ndarray,
@@ -905,17 +969,13 @@ def _ewald_fourier_sums(
                 t = m3 - m3_lo
                 j3 = m3 + m_c
                 # rho(k) = sum exp(-i k.x) = sum_re - i sum_im; |rho|^2 = sum_re^2 + sum_im^2.
-                sum_re = 0.0
-                sum_im = 0.0
                 for p in range(n):
                     b_r = c3[j3, p]
                     b_i = s3[j3, p]
-                    er = p_re[p] * b_r - p_im[p] * b_i
-                    ei = p_re[p] * b_i + p_im[p] * b_r
-                    e_re[p] = er
-                    e_im[p] = ei
-                    sum_re += er
-                    sum_im += ei
+                    e_re[p] = p_re[p] * b_r - p_im[p] * b_i
+                    e_im[p] = p_re[p] * b_i + p_im[p] * b_r
+                sum_re = _lane_sum(e_re, n)
+                sum_im = _lane_sum(e_im, n)
                 rho2 = sum_re * sum_re + sum_im * sum_im
                 for c in range(6):
                     d_sum[c] += rho2 * coef[3 + c, t]
@@ -1143,6 +1203,13 @@ def _spme_fourier_sums(
 
 
 @njit(cache=True)
+def collects_near_pairs(plan: EwaldPlan, box_length: float, near_cutoff: float) -> bool:
+    """Whether :func:`dip_far_field_with_pairs` returns the pairs closer than ``near_cutoff``: the
+    real-space sum reaches them (``near_cutoff <= r_c``) and each has a single image (``< L/2``)."""
+    return 0.0 < near_cutoff <= plan.real_cutoff and near_cutoff < 0.5 * box_length
+
+
+@njit(cache=True)
 def dip_far_field(
     positions: np.ndarray,
     box_length: float,
@@ -1181,6 +1248,35 @@ def dip_far_field(
         Hasimoto (1959); Beenakker (1986); Essmann et al. (1995); Park & Saintillan (2010);
         Mirfendereski & Park (2024) eqs 2.3-2.5; ``docs/model.md#dipolophoresis``.
     """
+    velocity, icep_stress, dep_stress, _, _ = dip_far_field_with_pairs(
+        positions, box_length, offset, direction, icep_weight, dep_weight, plan, 0.0
+    )
+    return velocity, icep_stress, dep_stress
+
+
+@njit(cache=True)
+def dip_far_field_with_pairs(
+    positions: np.ndarray,
+    box_length: float,
+    offset: float,
+    direction: np.ndarray,
+    icep_weight: float,
+    dep_weight: float,
+    plan: EwaldPlan,
+    near_cutoff: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`dip_far_field` and the pairs closer than ``near_cutoff`` from its real-space sum.
+
+    The near-field blend needs every pair closer than its cut-off (4 a); the real-space sum visits them
+    anyway, so it hands them over (:func:`_real_space_sums`) when :func:`collects_near_pairs` (``0 <
+    near_cutoff <= r_c`` and ``near_cutoff < L/2``); otherwise the pair arrays are empty and the caller
+    builds its own list.
+
+    Returns:
+        ``(velocity, icep_pair_stress, dep_virial_stress, pairs, separations)`` as :func:`dip_far_field`,
+        then ``pairs`` (K, 2) int64 and ``separations`` (K, 3) ``x_j - x_i`` (units ``a``) of the pairs
+        closer than ``near_cutoff``, unsorted; K = 0 and shape ``(0, 2)`` when not collected.
+    """
     if positions.ndim != 2 or positions.shape[1] != 3:
         raise ValueError("positions must have shape (N, 3)")
     if not (box_length > 0.0) or abs(box_length - plan.box_length) > 1e-9 * plan.box_length:
@@ -1201,9 +1297,22 @@ def dip_far_field(
     real_sums = np.zeros((2, 6))
     four_d = np.zeros((3, 3))
     four_k = np.zeros((3, 3))
+    collect = collects_near_pairs(plan, box_length, near_cutoff)
+    near_pairs = np.empty((0, 2), dtype=np.int64)
+    near_separations = np.empty((0, 3))
     if n > 1 or plan.real_cutoff > box_length:  # pairs, or a single sphere's own images
-        _real_space_sums(
-            positions, box_length, offset, plan.splitting, plan.real_cutoff, q, a_s, a_t, velocity, real_sums
+        near_pairs, near_separations = _real_space_sums(
+            positions,
+            box_length,
+            offset,
+            plan.splitting,
+            plan.real_cutoff,
+            q,
+            a_s,
+            a_t,
+            velocity,
+            real_sums,
+            near_cutoff if collect else 0.0,
         )
     if plan.method == METHOD_SPME:
         _spme_fourier_sums(
@@ -1248,7 +1357,7 @@ def dip_far_field(
             icep_stress[j, i] = icep_weight * d
             dep_stress[i, j] = dep_weight * v
             dep_stress[j, i] = dep_weight * v
-    return velocity, icep_stress, dep_stress
+    return velocity, icep_stress, dep_stress, near_pairs, near_separations
 
 
 # --------------------------------------------------------------------------------------------------

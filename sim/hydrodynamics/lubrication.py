@@ -348,3 +348,65 @@ def pair_stresslets(
         _add_m_colon_e(si, m20, xm, ym, zm, d, strain_rate)
         _add_m_colon_e(sj, m20, xm, ym, zm, d, strain_rate)
     return out
+
+
+@njit(cache=True)
+def pair_stresslet_sum(
+    pairs: np.ndarray,
+    units: np.ndarray,
+    scalars: np.ndarray,
+    velocities: np.ndarray,
+    strain_rate: np.ndarray,
+) -> np.ndarray:
+    """Sum over particles of :func:`pair_stresslets`, ``sum_p S_p`` (3, 3), without the per-particle array.
+
+    The bulk stress needs only the sum, and each pair's two stresslets add up to one operator of each kind
+    (the operators are linear in their scalars; ``G21 = -G12``, ``G22 = -G11``, ``H21 = H12``,
+    ``H22 = H11``)::
+
+        S_i + S_j = -4pi G(XG11 - XG12, YG11 - YG12) . (U'_i - U'_j) - 8pi H(YH11 + YH12) . (W'_i + W'_j)
+                    + 2 (20/3)pi (M11 + M12) : E,
+
+    a third of the work of :func:`pair_stresslets` and no allocation per pair (equal to its sum to rounding,
+    tested to 1e-12). Same arguments and units as :func:`pair_stresslets`.
+
+    Returns:
+        (3, 3) sum of the lubrication stresslets of all particles (units eta a^3 gammadot).
+    """
+    out = np.zeros((3, 3))
+    du = np.empty(3)
+    w = np.empty(3)
+    g4 = 4.0 * _PI
+    h8 = 8.0 * _PI
+    m40 = 40.0 * _PI / 3.0
+    for k in range(pairs.shape[0]):
+        sc = scalars[k]
+        d = units[k]
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        for c in range(3):
+            du[c] = velocities[i, c] - velocities[j, c]
+            w[c] = velocities[i, 3 + c] + velocities[j, 3 + c]
+        _add_g_dot_u(out, -g4, sc[I_XG11] - sc[I_XG12], sc[I_YG11] - sc[I_YG12], d, du)
+        _add_h_dot_w(out, -h8, sc[I_YH11] + sc[I_YH12], d, w)
+        e0 = strain_rate[0, 0] * d[0] + strain_rate[0, 1] * d[1] + strain_rate[0, 2] * d[2]
+        e1 = strain_rate[1, 0] * d[0] + strain_rate[1, 1] * d[1] + strain_rate[1, 2] * d[2]
+        e2 = strain_rate[2, 0] * d[0] + strain_rate[2, 1] * d[1] + strain_rate[2, 2] * d[2]
+        ev = (e0, e1, e2)
+        q = d[0] * e0 + d[1] * e1 + d[2] * e2
+        xm = sc[I_XM11] + sc[I_XM12]
+        ym = sc[I_YM11] + sc[I_YM12]
+        zm = sc[I_ZM11] + sc[I_ZM12]
+        for a in range(3):  # M(xm, ym, zm) : E, as in _add_m_colon_e
+            for b in range(3):
+                iso = 1.0 if a == b else 0.0
+                dd = d[a] * d[b]
+                val = 1.5 * xm * (dd - iso / 3.0) * q
+                val += ym * (d[a] * ev[b] + d[b] * ev[a] - 2.0 * dd * q)
+                val += (
+                    0.5
+                    * zm
+                    * (2.0 * strain_rate[a, b] + iso * q + dd * q - 2.0 * d[a] * ev[b] - 2.0 * d[b] * ev[a])
+                )
+                out[a, b] += m40 * val
+    return out

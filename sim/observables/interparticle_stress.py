@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.config import SimulationConfig
-from sim.hydrodynamics.lubrication import pair_stresslets
+from sim.hydrodynamics.lubrication import pair_stresslet_sum
 from sim.hydrodynamics.resistance_solver import solve_resistance
 from sim.pair_system import pair_system
 from sim.step_parameters import step_parameters
@@ -80,5 +80,5 @@ def interparticle_stress(
     if iterations < 0:
         raise RuntimeError(f"interparticle_stress: the resistance solve failed (residual {residual:.2e})")
     volume = length**3
-    induced = pair_stresslets(n, pairs, units, scalars, velocities, np.zeros((3, 3))).sum(axis=0) / volume
+    induced = pair_stresslet_sum(pairs, units, scalars, velocities, np.zeros((3, 3))) / volume
     return InterparticleStress(virial=-virial / volume, induced=induced)
