@@ -1,0 +1,90 @@
+"""Rescore thickening-control episodes for other energy weights w_E (issue 21: choosing v1's w_E).
+
+    python scripts/thickening_energy_weight.py POINTS_DIR [POINTS_DIR ...] [--weights 1,0.5,0.3,0.2,0.1]
+
+Each POINTS_DIR is a folder of ``agents.open_loop`` or ``agents.controllers`` point files (``points/`` or
+``tuning/``) of a ``dipenv/ThickeningControl*`` environment. Every point keeps each interval's ``eta_r``,
+field energy ``<1/Mn_ref>`` and shear rate in its episodes' traces, so the return of another reward weight
+needs no rerun: per episode ``R(w_E) = -sum_k [max(0, eta_r,k - eta_cap) + w_E <1/Mn_ref>_k]`` over its
+intervals (the reward of ``dipenv.rewards.ThickeningPenaltyReward``), with the cap the episode was run
+with. Prints two Markdown tables: per point, the mean eta_r, time above the cap, excess and energy, and
+eta_r by the interval's shear rate (thickening at a fixed field); then per w_E the mean return of every
+point over its episodes and the best point.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+RATE_BINS = ((0.0, 0.5), (0.5, 1.5), (1.5, 3.0), (3.0, np.inf))
+"""Shear-rate bins (units gammadot_ref) of the thickening table."""
+
+
+def load_points(folders: list[Path]) -> dict[str, dict[str, np.ndarray]]:
+    """Label -> (episodes, intervals) arrays ``eta``, ``energy``, ``rate`` and per-episode ``cap``."""
+    points: dict[str, dict[str, np.ndarray]] = {}
+    for folder in folders:
+        files = sorted(folder.glob("*.json"))
+        if not files:
+            raise SystemExit(f"{folder}: no point files (*.json)")
+        for path in files:
+            record = json.loads(path.read_text())
+            traces = [episode["trace"] for episode in record["episodes"]]
+            label = f"{folder.parent.name}/{record.get('label', path.stem)}"
+            points[label] = {
+                "eta": np.array([t["eta_r"] for t in traces], dtype=float),
+                "energy": np.array([t["field_energy"] for t in traces], dtype=float),
+                "rate": np.array([t["shear_rate"] for t in traces], dtype=float),
+                "cap": np.array([t["eta_cap"] for t in traces], dtype=float)[:, None],
+            }
+    return points
+
+
+def returns(point: dict[str, np.ndarray], weight: float) -> np.ndarray:
+    """Per-episode return under energy weight ``weight``."""
+    excess = np.maximum(0.0, point["eta"] - point["cap"])
+    return -(excess + weight * point["energy"]).sum(axis=1)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("folders", nargs="+", type=Path, help="folders of point files")
+    parser.add_argument("--weights", default="1,0.5,0.3,0.2,0.1", help="energy weights w_E, comma-separated")
+    args = parser.parse_args()
+    try:
+        weights = [float(w) for w in args.weights.split(",")]
+    except ValueError:
+        parser.error(f"--weights takes numbers separated by commas, got {args.weights!r}")
+    if any(not np.isfinite(w) or w < 0.0 for w in weights):
+        parser.error(f"--weights must be finite and >= 0, got {args.weights!r}")
+    points = load_points(args.folders)
+    bins = " | ".join(f"eta_r at rate {lo:g}-{hi:g}" for lo, hi in RATE_BINS)
+    print(f"| point | episodes | eta_r | time above cap | excess | energy | {bins} |")
+    print("|---|---|---|---|---|---|" + "---|" * len(RATE_BINS))
+    for label, p in points.items():
+        excess = np.maximum(0.0, p["eta"] - p["cap"])
+        by_rate = []
+        for lo, hi in RATE_BINS:
+            mask = (p["rate"] >= lo) & (p["rate"] < hi)
+            by_rate.append(f"{p['eta'][mask].mean():.2f}" if mask.any() else "-")
+        print(
+            f"| {label} | {p['eta'].shape[0]} | {p['eta'].mean():.2f} | {(excess > 0).mean():.0%} | "
+            f"{excess.mean():.2f} | {p['energy'].mean():.2f} | " + " | ".join(by_rate) + " |"
+        )
+    print()
+    print("| w_E | " + " | ".join(points) + " | best |")
+    print("|---|" + "---|" * (len(points) + 1))
+    for weight in weights:
+        means = {label: float(returns(p, weight).mean()) for label, p in points.items()}
+        best = max(means, key=lambda k: means[k])
+        print(f"| {weight:g} | " + " | ".join(f"{v:.1f}" for v in means.values()) + f" | {best} |")
+
+
+if __name__ == "__main__":
+    main()
