@@ -29,12 +29,13 @@ One core (``NUMBA_NUM_THREADS=1``); run it alone, the second core busy shifts ev
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import statistics
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
@@ -151,7 +152,7 @@ def profile(
     from sim.hydrodynamics.stokes_drag import FORCE_DRAG, TORQUE_DRAG
     from sim.observables.stress import N_CONTRIBUTIONS
     from sim.step_parameters import field_parameters
-    from sim.stepper import advance, choose_time_step, dipolophoresis_term, evaluate, hydrodynamic_term
+    from sim.stepper import choose_time_step, dipolophoresis_term, evaluate, hydrodynamic_term
 
     config = config_for(n, mason)
     simulation = Simulation(config, state=state, keep_records=False)
@@ -361,24 +362,11 @@ def profile(
     )
 
     # Python overhead of advance_to: the wall time less the time inside the compiled advance
-    compiled = [0.0]
-
-    def timed_advance(*args: object) -> tuple:
-        t0 = time.perf_counter()
-        out = advance(*args)
-        compiled[0] += time.perf_counter() - t0
-        return out
-
-    import sim.simulation as simulation_module
-
-    simulation_module.advance = timed_advance  # type: ignore[assignment]
-    try:
+    with timed_advance() as compiled:
         sim3 = Simulation(config, state=state)
         t0 = time.perf_counter()
         records = sim3.advance_to(sim3.state.time + 0.25)
         wall = time.perf_counter() - t0
-    finally:
-        simulation_module.advance = advance  # type: ignore[assignment]
     rows.append(
         (
             "advance_to(0.25 strain): Python",
@@ -390,26 +378,37 @@ def profile(
     return rows
 
 
-def env_profile(n: int, mason: float, env_steps: int) -> tuple[float, float, int]:
-    """Seconds per env step, seconds inside the compiled ``advance`` per env step, simulator steps."""
-    import gymnasium as gym
-
-    import dipenv  # noqa: F401
+@contextlib.contextmanager
+def timed_advance() -> Iterator[list[float]]:
+    """Within the block, ``sim.simulation`` calls a wrapper of the compiled ``advance`` that adds the
+    seconds spent inside it to the yielded ``[seconds]`` (so the caller's wall time less it is Python)."""
     import sim.simulation as simulation_module
-    from agents.open_loop import constant_action
     from sim.stepper import advance
 
-    env = gym.make("dipenv/FieldMagnitude-v0", n_particles=n, target_viscosity=6.1, progress=False)
     compiled = [0.0]
 
-    def timed_advance(*args: object) -> tuple:
+    def timed(*args: object) -> tuple:
         t0 = time.perf_counter()
         out = advance(*args)
         compiled[0] += time.perf_counter() - t0
         return out
 
-    simulation_module.advance = timed_advance  # type: ignore[assignment]
+    simulation_module.advance = timed  # type: ignore[assignment]
     try:
+        yield compiled
+    finally:
+        simulation_module.advance = advance  # type: ignore[assignment]
+
+
+def env_profile(n: int, mason: float, env_steps: int) -> tuple[float, float, int]:
+    """Seconds per env step, seconds inside the compiled ``advance`` per env step, simulator steps."""
+    import gymnasium as gym
+
+    import dipenv  # noqa: F401
+    from agents.open_loop import constant_action
+
+    env = gym.make("dipenv/FieldMagnitude-v0", n_particles=n, target_viscosity=6.1, progress=False)
+    with timed_advance() as compiled:
         env.reset(seed=0, options={"split": "test", "index": 0})
         action = np.array(constant_action(env.unwrapped, mason, None), dtype=np.float32)
         env.step(action)  # untimed: the structure adapts to the field
@@ -421,8 +420,6 @@ def env_profile(n: int, mason: float, env_steps: int) -> tuple[float, float, int
             _, _, _, _, info = env.step(action)
             wall += time.perf_counter() - t0
             sim_steps += info["sim_steps"]
-    finally:
-        simulation_module.advance = advance  # type: ignore[assignment]
     return wall / env_steps, compiled[0] / env_steps, sim_steps // env_steps
 
 
