@@ -29,7 +29,9 @@ the point with the highest mean return, and plays it on ``--split``. Output, in 
 ``agents.open_loop`` so that ``agents.evaluate --controllers DIR`` reads it as a row: ``DIR/tuning/``
 (one JSON per grid point), ``DIR/tuning.csv``, ``DIR/points/<label>.json`` (the tuned controller on the
 test split), ``DIR/controller.json`` and ``DIR/command.txt``. Points whose stored identity matches are
-reused, so a killed run resumes point by point.
+reused, so a killed run resumes point by point. The identity leaves out the energy weight ``w_E``: a rerun
+with another ``energy_weight`` rescores the stored returns (:func:`agents.open_loop.rescore`), picks the
+tuning point again and plays only a newly picked one on ``--split``.
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.open_loop import _finite, read_json, write_json
+from agents.open_loop import _finite, read_json, rescore, write_json
 from agents.rollout import make_env, run_episode
 from agents.tasks import run_tasks
 from agents.usage import (
@@ -250,6 +252,16 @@ def grid_points(grid: dict[str, list[float]]) -> list[dict[str, float]]:
     return [dict(zip(names, values, strict=True)) for values in itertools.product(*(grid[n] for n in names))]
 
 
+def rescored(record: dict[str, Any], reward: Any, folder: Path) -> dict[str, Any]:
+    """``record`` with its returns recomputed by ``reward`` (:func:`agents.open_loop.rescore`), rewritten
+    in ``folder`` if they changed, so that the stored rewards are always those of the last reward used."""
+    before = [e["return"] for e in record["episodes"]]
+    record = rescore(record, reward)
+    if [e["return"] for e in record["episodes"]] != before:
+        write_json(folder / f"{record['label']}.json", record)
+    return record
+
+
 def mean_return(record: dict[str, Any]) -> float:
     returns = [e["return"] for e in record["episodes"]]
     return float(np.mean(returns)) if returns else -math.inf
@@ -312,7 +324,15 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
         counts[split, option] = n
     key = unwrapped.library().key
+    reward = unwrapped.reward_function
+    # A controller's trajectories do not depend on the energy weight: the identity holds the physics, the
+    # cap (the episode metrics are measured against it) and the failure penalty (a stored failed step
+    # keeps it); stored returns are rescored below with the reward in use, so that another energy weight
+    # re-picks the tuned point without simulating.
     settings = unwrapped.settings()
+    reward_settings = settings.pop("reward")
+    settings["eta_cap"] = reward_settings["eta_cap"]
+    settings["failure_penalty"] = reward_settings["failure_penalty"]
     unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
     env.close()
     for folder in ("tuning", "points"):
@@ -334,7 +354,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             "path": str(args.out / folder / f"{label}.json"),
             "identity": {
                 "env_id": args.env,
-                "env_kwargs": env_kwargs,
+                "env_kwargs": {k: v for k, v in env_kwargs.items() if k != "energy_weight"},
                 "env_settings": settings,
                 "library_key": key,
                 "controller": args.controller,
@@ -351,6 +371,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         workers=args.workers,
         scheduler=args.scheduler,
     )
+    tuning = [rescored(record, reward, args.out / "tuning") for record in tuning]
     lines = [",".join([*sorted(grid), "return", "time_above_cap", "excess_viscosity", "energy_mean"])]
     for record in tuning:
         eps = record["episodes"]
@@ -374,6 +395,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         workers=1,
         scheduler=args.scheduler,
     )[0]
+    tuned = rescored(tuned, reward, args.out / "points")
     summary = {
         "env_id": args.env,
         "env_kwargs": env_kwargs,
@@ -387,6 +409,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "label": tuned["label"],
         "test_return": mean_return(tuned),
         "library_key": key,
+        "energy_weight": reward.energy_weight,
     }
     write_json(args.out / "controller.json", summary)
     print("\n".join(lines))

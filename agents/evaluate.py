@@ -188,10 +188,12 @@ def check_same_states(
 
 
 def load_controller(
-    folder: Path, pareto: dict[str, Any], split: str, indices: list[int]
+    folder: Path, pareto: dict[str, Any], split: str, indices: list[int], reward: Any
 ) -> tuple[str, dict[str, Any]]:
-    """The tuned controller of an ``agents.controllers`` folder as ``(row name, record)``; exit 2 unless it
-    was played in the baseline's env on the same start states and schedules (split, library, indices)."""
+    """The tuned controller of an ``agents.controllers`` folder as ``(row name, record)``, its returns
+    rescored with ``reward``; exit 2 unless it was played in the baseline's env on the same start states
+    and schedules (split, library, indices) and tuned for ``reward``'s energy weight (the tuned point
+    depends on it)."""
     summary_file = folder / "controller.json"
     if not summary_file.is_file():
         usage_error(PROG, f"--controllers: {folder} holds no controller.json (an agents.controllers output)")
@@ -212,8 +214,16 @@ def load_controller(
         problems.append(f"states {sorted(played)} (needed: {indices})")
     if problems:
         usage_error(PROG, f"--controllers: {folder} was played on other episodes: " + "; ".join(problems))
+    tuned_weight = summary.get("energy_weight", reward.energy_weight)
+    if tuned_weight != reward.energy_weight:
+        usage_error(
+            PROG,
+            f"--controllers: {folder} was tuned for energy_weight {tuned_weight:g}, the evaluated reward has "
+            f"{reward.energy_weight:g}; rerun its agents.controllers command with --env-kwargs "
+            f"'{{\"energy_weight\": {reward.energy_weight:g}}}' (it rescores the stored points and re-picks)",
+        )
     params = ", ".join(f"{k} {v:g}" for k, v in summary["tuned_params"].items())
-    return f"{summary['controller']} ({params}; tuned on {summary['tune_split']})", record
+    return f"{summary['controller']} ({params}; tuned on {summary['tune_split']})", rescore(record, reward)
 
 
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
@@ -742,7 +752,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
     )
-    controllers = [load_controller(folder, pareto, split, indices) for folder in args.controllers]
+    controllers = [load_controller(folder, pareto, split, indices, reward) for folder in args.controllers]
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
     check_same_states({Path(r["run"]): r["library_key"] for r in records}, pareto, configs)
     by_label = {p["label"]: p for p in points}

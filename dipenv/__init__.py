@@ -31,6 +31,8 @@ from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningContr
 __all__ = [
     "ENV_IDS",
     "V1_KWARGS",
+    "THICKENING_ENERGY_WEIGHT_V1",
+    "THICKENING_V1_KWARGS",
     "THICKENING_TINY_KWARGS",
     "TINY_KWARGS",
     "FieldMagnitudeEnv",
@@ -69,6 +71,17 @@ box of the box-size study whose episode-averaged eta_r matches N = 500's at Mn 0
 docs/environments.md#box-size). The reward's target and cap follow from the tabulated (phi, N) defaults
 (:mod:`dipenv.rewards`)."""
 
+THICKENING_ENERGY_WEIGHT_V1 = 0.3
+"""``w_E`` of the ``ThickeningControl*-v1`` ids (``-v0``: 1). In the N = 300 box a field lowers eta_r only
+from 10 to about 7.4, so at ``w_E = 1`` no constant field beats no field on the test schedules (return
+-113.2 against -127.4 at ``Mn_ref = 1`` and -130.4 at 0.5). At 0.3 the two terms of the penalty weigh about
+the same at the best constant field (``Mn_ref = 0.5``: excess eta_r 0.72, energy term 0.3 x 2 = 0.60 per
+interval), so a controller gains by spending less field and by thickening less alike
+(docs/thickening_control.md#energy-weight, results/thickening_control/v1)."""
+
+THICKENING_V1_KWARGS: dict[str, Any] = {**V1_KWARGS, "energy_weight": THICKENING_ENERGY_WEIGHT_V1}
+"""What the thickening-control ``-v1`` ids change against ``-v0``: the box, and the energy weight."""
+
 _THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
     "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", {}),
@@ -80,8 +93,11 @@ _SPECS = {
     "dipenv/ThickeningControl-v0": (f"{_THICKENING}:ThickeningControlEnv", {}),
     "dipenv/ThickeningControlStressOnly-v0": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", {}),
     "dipenv/ThickeningControlTiny-v0": (f"{_THICKENING}:ThickeningControlEnv", THICKENING_TINY_KWARGS),
-    "dipenv/ThickeningControl-v1": (f"{_THICKENING}:ThickeningControlEnv", V1_KWARGS),
-    "dipenv/ThickeningControlStressOnly-v1": (f"{_THICKENING}:ThickeningControlStressOnlyEnv", V1_KWARGS),
+    "dipenv/ThickeningControl-v1": (f"{_THICKENING}:ThickeningControlEnv", THICKENING_V1_KWARGS),
+    "dipenv/ThickeningControlStressOnly-v1": (
+        f"{_THICKENING}:ThickeningControlStressOnlyEnv",
+        THICKENING_V1_KWARGS,
+    ),
 }
 """Entry point and keyword arguments of each id. No ``max_episode_steps``: each env truncates itself after
 its own ``episode_steps`` (``gym.make(id, episode_steps=20)`` gives 20-action episodes, as ``settings()``

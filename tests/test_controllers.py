@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -141,6 +142,43 @@ def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) 
     assert point.read_bytes() == before
 
 
+def test_another_energy_weight_rescores_the_stored_points(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A rerun with another ``energy_weight`` simulates no tuning point again: their stored returns are
+    recomputed from the stored per-interval eta_r and field energy (exactly, the same float sums as the
+    env's rewards), the tuning is re-picked, and only a newly picked point is played on test. At
+    ``w_E = 100`` the weaker field (Mn* = 4, an eighth of Mn* = 0.5's energy at every rate) must win: its
+    energy saving is 100 x 7/8 x the Mn* = 4 energy, far above any eta_r difference on the tiny box."""
+    out = tmp_path / "ff"
+    argv = ["--env", TINY, "--controller", "feedforward", "--grid", "mason_star=0.5,4"]
+    argv += ["--tune-episodes", "1", "--episodes", "1", "--out", str(out)]
+    controllers.main(argv)
+    calls: list[str] = []
+    real = controllers.run_episode
+
+    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
+        calls.append(split)
+        return real(env, policy, split, index)
+
+    monkeypatch.setattr(controllers, "run_episode", counted)
+    summary = controllers.main([*argv, "--env-kwargs", '{"energy_weight": 100}'])
+    assert "validation" not in calls and len(calls) <= 1
+    assert summary["tuned_params"] == {"mason_star": 4.0}
+    cap = 7.0  # THICKENING_TINY_KWARGS' eta_cap
+    for path in sorted((out / "tuning").glob("*.json")):
+        (episode,) = json.loads(path.read_text())["episodes"]
+        trace = episode["trace"]
+        expected = [
+            min(0.0, cap - eta) - 100.0 * energy
+            for eta, energy in zip(trace["eta_r"], trace["field_energy"], strict=True)
+        ]
+        assert trace["reward"] == pytest.approx(expected, rel=1e-12)
+        assert episode["return"] == pytest.approx(sum(expected), rel=1e-12)
+    (point,) = (out / "points").glob("*.json")
+    assert json.loads(point.read_text())["params"] == {"mason_star": 4.0}
+
+
 @pytest.mark.parametrize(
     ("extra", "match"),
     [
@@ -229,3 +267,18 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
         evaluate.main(["--controllers", str(other), "--baseline", str(baseline), "--out", str(out)])
     assert exit_info.value.code == 2
     assert "split validation" in capsys.readouterr().err
+
+    # Tuned for another energy weight (a copy of ff rescored, no simulation): its pick may differ, so the
+    # evaluation of the default reward refuses it and names the fix.
+    heavy = tmp_path / "ff_heavy"
+    shutil.copytree(ff, heavy)
+    controllers.main(
+        ["--controller", "feedforward", "--grid", "mason_star=1", "--tune-episodes", "1", "--episodes", "2"]
+        + ["--env-kwargs", '{"energy_weight": 100}']
+        + common
+        + [str(heavy)]
+    )
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["--controllers", str(heavy), "--baseline", str(baseline), "--out", str(out)])
+    assert exit_info.value.code == 2
+    assert "tuned for energy_weight 100" in capsys.readouterr().err

@@ -73,13 +73,19 @@ V0_IDS = [env_id for env_id in dipenv.ENV_IDS if env_id.endswith("-v0")]
 
 @pytest.mark.parametrize("env_id", [i for i in dipenv.ENV_IDS if i.endswith("-v1")])
 def test_v1_is_v0_in_the_box_of_the_box_size_study(env_id: str) -> None:
-    """Same class and arguments as ``-v0`` but N = 300, and the reward's default target or cap is the
-    one tabulated for (0.45, 300), not N = 64's (checked at make: no start state is generated)."""
+    """Same class and arguments as ``-v0`` but N = 300 (and, for thickening control, the energy weight
+    re-chosen for that box), and the reward's default target or cap is the one tabulated for (0.45, 300),
+    not N = 64's (checked at make: no start state is generated)."""
     v0 = gym.spec(env_id.replace("-v1", "-v0"))
     v1 = gym.spec(env_id)
     assert v1.entry_point == v0.entry_point
-    assert v1.kwargs == {**v0.kwargs, "n_particles": 300}
+    changed = {"n_particles": 300}
+    if "Thickening" in env_id:
+        changed["energy_weight"] = dipenv.THICKENING_ENERGY_WEIGHT_V1
+    assert v1.kwargs == {**v0.kwargs, **changed}
     env = gym.make(env_id, progress=False).unwrapped
+    v0_weight = gym.make(env_id.replace("-v1", "-v0"), progress=False).unwrapped.reward_function.energy_weight
+    assert env.reward_function.energy_weight == changed.get("energy_weight", v0_weight)
     assert env.base_config.n_particles == 300
     assert env.base_config.volume_fraction == 0.45
     table = DEFAULT_VISCOSITY_CAP if "Thickening" in env_id else DEFAULT_TARGET_VISCOSITY

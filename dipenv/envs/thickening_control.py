@@ -80,8 +80,10 @@ class ThickeningControlEnv(FieldControlEnv):
 
     ``r = -(max(0, eta_r - eta_cap) + w_E <eps E0^2>)`` per interval: ``eta_r = Sigma_xy/(eta gammadot)``
     time-averaged over the interval at the rates in force, ``<eps E0^2> = <1/Mn_ref>`` the field energy
-    density (``eta gammadot_ref``). Default ``eta_cap``: :data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP` (6.5
-    at phi = 0.45, the constant fields' low-viscosity plateau), ``w_E = 1``. ``info`` holds every term
+    density (``eta gammadot_ref``). Default ``eta_cap``: :data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`
+    (the constant fields' low-viscosity plateau at phi = 0.45: 6.5 at N = 64, 7.7 at N = 300). ``w_E``:
+    1 by default and in ``-v0``, :data:`dipenv.THICKENING_ENERGY_WEIGHT_V1` (0.3) in ``-v1``, where the
+    bigger box's smaller field effect needs a lighter weight for any field to pay. ``info`` holds every term
     and ``eta_r``, ``n1``, ``n2``, ``shear_stress``, ``shear_rate`` (interval mean), ``shear_rate_end``,
     ``instantaneous_mason_number`` (interval mean of rate x Mn_ref), ``mason_number`` (``Mn_ref``),
     ``field_energy``, ``eta_cap``, ``time`` (since the episode start) and the simulator's step statistics.
@@ -110,7 +112,9 @@ class ThickeningControlEnv(FieldControlEnv):
 
     * v0: initial version (2026-12-02).
     * v1 (2026-12-03): N = 300 instead of 64 (docs/environments.md#box-size), and the default cap is
-      N = 300's plateau (:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`). Everything else is as v0.
+      N = 300's plateau (:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`); ``w_E = 0.3`` instead of 1
+      (revised 2026-12-03, before any policy was trained on v1: at 1 no constant field beats no field
+      in the N = 300 box). Everything else is as v0.
     """
 
     __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
