@@ -263,10 +263,13 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
         + common
         + [str(other)]
     )
-    with pytest.raises(SystemExit) as exit_info:
-        evaluate.main(["--controllers", str(other), "--baseline", str(baseline), "--out", str(out)])
-    assert exit_info.value.code == 2
-    assert "split validation" in capsys.readouterr().err
+    def refusal(folder: Path) -> str:
+        with pytest.raises(SystemExit) as exit_info:
+            evaluate.main(["--controllers", str(folder), "--baseline", str(baseline), "--out", str(out)])
+        assert exit_info.value.code == 2
+        return capsys.readouterr().err
+
+    assert "split validation" in refusal(other)
 
     # Tuned for another energy weight (a copy of ff rescored, no simulation): its pick may differ, so the
     # evaluation of the default reward refuses it and names the fix.
@@ -278,7 +281,4 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
         + common
         + [str(heavy)]
     )
-    with pytest.raises(SystemExit) as exit_info:
-        evaluate.main(["--controllers", str(heavy), "--baseline", str(baseline), "--out", str(out)])
-    assert exit_info.value.code == 2
-    assert "tuned for energy_weight 100" in capsys.readouterr().err
+    assert "tuned for energy_weight 100" in refusal(heavy)
