@@ -5,7 +5,10 @@
         [--scheduler ADDRESS]
 
 ``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
-constant fields (played on the same split, start states and schedules, else exit 2). For the
+constant fields (played on the same split, start states and schedules, else exit 2). Runs and controllers
+may come from another env than the baseline's if the two differ only in what the policy observes
+(:func:`physics_difference`): ``ThickeningControlStressOnly-v1``'s rows share
+``ThickeningControl-v1``'s constant fields. For the
 thickening-control environments the table adds the whole-episode metrics of :mod:`agents.rollout`: the
 fraction of intervals above the cap, the excess ``eta_r`` over it and the field energy.
 
@@ -164,6 +167,34 @@ def start_state_library(config: dict[str, Any]) -> str:
         env.close()
 
 
+OBSERVATION_SETTINGS = ("observation", "history_length")
+"""Env settings that shape only what a policy sees, not the trajectory a given action sequence makes."""
+
+
+def physics_difference(
+    env_id: str, env_kwargs: dict[str, Any], other_id: str, other_kwargs: dict[str, Any]
+) -> list[str]:
+    """The ``settings()`` entries in which two envs differ, leaving out what only the observation
+    (:data:`OBSERVATION_SETTINGS`) or the rescored energy weight depend on: an empty list means that the
+    same actions make the same episodes and metrics in both (e.g. ``ThickeningControl-v1`` and its
+    stress-only sibling), so that one's constant-field baseline serves the other's policies and
+    controllers."""
+
+    def physics(env_name: str, kwargs: dict[str, Any]) -> dict[str, Any]:
+        env = make_env(env_name, {**kwargs, "progress": False})
+        try:
+            settings = env.unwrapped.settings()  # type: ignore[attr-defined]
+        finally:
+            env.close()
+        for name in OBSERVATION_SETTINGS:
+            settings.pop(name, None)
+        settings["reward"] = {k: v for k, v in settings["reward"].items() if k != "energy_weight"}
+        return settings
+
+    ours, theirs = physics(env_id, env_kwargs), physics(other_id, other_kwargs)
+    return sorted(k for k in set(ours) | set(theirs) if ours.get(k) != theirs.get(k))
+
+
 def check_same_states(
     keys: dict[Path, str], pareto: dict[str, Any], configs: dict[Path, dict[str, Any]]
 ) -> None:
@@ -204,8 +235,15 @@ def load_controller(
     record = read_json(record_file)
     played = {e["index"] for e in record["episodes"]}
     problems = []
-    if summary["env_id"] != pareto["env_id"]:
-        problems.append(f"env {summary['env_id']} (the baseline's: {pareto['env_id']})")
+    if (summary["env_id"], summary["env_kwargs"]) != (pareto["env_id"], pareto["env_kwargs"]):
+        differing = physics_difference(
+            summary["env_id"], summary["env_kwargs"], pareto["env_id"], pareto["env_kwargs"]
+        )
+        if differing:
+            problems.append(
+                f"env {summary['env_id']} (the baseline's: {pareto['env_id']}; they differ in "
+                f"{', '.join(differing)})"
+            )
     if summary["split"] != split:
         problems.append(f"split {summary['split']} (evaluated: {split})")
     if summary.get("library_key") != pareto.get("library_key"):
@@ -673,9 +711,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     configs = {run: read_run_config(run) for runs in groups.values() for run in runs}
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
-        if env_id != pareto["env_id"]:
+        if env_id == pareto["env_id"]:
+            continue
+        differing = physics_difference(
+            env_id, run_config["env_kwargs"], pareto["env_id"], pareto["env_kwargs"]
+        )
+        if differing:
             usage_error(
-                PROG, f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}"
+                PROG,
+                f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}, and "
+                f"they differ in {', '.join(differing)} (beyond what the policy observes)",
             )
     split = args.split or pareto["split"]
     if split != pareto["split"]:

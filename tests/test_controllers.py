@@ -282,3 +282,35 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
         + [str(heavy)]
     )
     assert "tuned for energy_weight 100" in refusal(heavy)
+
+
+def test_evaluate_shares_a_baseline_between_envs_that_differ_only_in_the_observation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A PI controller on the stress-only env (the tiny arguments) is a row beside the constant fields of
+    the tiny ThickeningControl env: a constant field ignores the observation, so those episodes are the
+    same. A controller whose env differs in its physics or cap (here the cap) is refused, naming it."""
+    from agents import evaluate, open_loop
+
+    tiny = json.dumps(dipenv.THICKENING_TINY_KWARGS)
+    baseline = tmp_path / "open_loop"
+    open_loop.main(["--env", TINY, "--out", str(baseline), "--mason", "off,1", "--episodes", "2"])
+    pi_args = ["--controller", "pi", "--grid", "kp=2", "ki=0.5", "setpoint=7", "--tune-episodes", "1"]
+    pi_args += ["--episodes", "2"]
+    stress_only = tmp_path / "pi_stress_only"
+    controllers.main(
+        [*pi_args, "--env", "dipenv/ThickeningControlStressOnly-v0", "--env-kwargs", tiny]
+        + ["--out", str(stress_only)]
+    )
+    out = tmp_path / "eval"
+    result = evaluate.main(
+        ["--controllers", str(stress_only), "--baseline", str(baseline), "--out", str(out)]
+    )
+    assert result["rows"][-1]["name"].startswith("pi (")
+
+    other_cap = tmp_path / "pi_other_cap"
+    controllers.main([*pi_args, "--env", TINY, "--env-kwargs", '{"eta_cap": 6.0}', "--out", str(other_cap)])
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["--controllers", str(other_cap), "--baseline", str(baseline), "--out", str(out)])
+    assert exit_info.value.code == 2
+    assert "differ in reward" in capsys.readouterr().err
