@@ -41,6 +41,9 @@ def per_seed(values: list[float]) -> str:
 
 
 def number(value: object) -> float:
+    """A result.json number, NaN if missing; ``"inf"`` (no field: JSON has no infinity) is read back."""
+    if isinstance(value, str) and value in ("inf", "-inf"):
+        return float(value)
     return float(value) if isinstance(value, int | float) else math.nan
 
 
