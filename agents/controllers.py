@@ -37,7 +37,9 @@ tuning point again and plays only a newly picked one on ``--split``.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import itertools
+import json
 import math
 import sys
 from collections.abc import Sequence
@@ -252,6 +254,14 @@ def grid_points(grid: dict[str, list[float]]) -> list[dict[str, float]]:
     return [dict(zip(names, values, strict=True)) for values in itertools.product(*(grid[n] for n in names))]
 
 
+def schedule_digest(unwrapped: Any, split: str, episodes: int) -> str:
+    """SHA-256 (16 hex digits) of the first ``episodes`` fixed schedules of ``split`` in ``unwrapped``."""
+    from dipenv.schedules import schedule_to_dict
+
+    knots = [schedule_to_dict(unwrapped.fixed_schedule(split, k)) for k in range(episodes)]
+    return hashlib.sha256(json.dumps(knots).encode()).hexdigest()[:16]
+
+
 def rescored(record: dict[str, Any], reward: Any, folder: Path) -> dict[str, Any]:
     """``record`` with its returns recomputed by ``reward`` (:func:`agents.open_loop.rescore`), rewritten
     in ``folder`` if they changed, so that the stored rewards are always those of the last reward used."""
@@ -333,6 +343,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     reward_settings = settings.pop("reward")
     settings["eta_cap"] = reward_settings["eta_cap"]
     settings["failure_penalty"] = reward_settings["failure_penalty"]
+    # The split's shear-rate schedules are part of a point's identity: the library key covers the start
+    # states only, and the shipped validation schedules changed once (2026-12-03).
+    schedules = {(split, n): schedule_digest(unwrapped, split, n) for (split, _), n in counts.items()}
     unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
     env.close()
     for folder in ("tuning", "points"):
@@ -361,6 +374,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 "params": params,
                 "split": split,
                 "episodes": episodes,
+                "schedules": schedules[split, episodes],
             },
         }
 

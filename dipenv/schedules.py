@@ -9,7 +9,10 @@ in ``ramp_range``, then a hold, and so on until the episode is covered.
 Training episodes draw their schedule with the environment's ``np_random``. The validation and test
 splits use fixed schedules (:func:`fixed_schedules`), shipped as package data
 (``dipenv/data/schedules.json``, made by :func:`write_fixed_schedules` from fixed seeds) so that every
-controller, in every version, meets the same ones.
+controller, in every version, meets the same ones. The test schedules are the first draws of their seeds.
+The validation schedules are stratified by mean rate (:func:`split_seeds`): from a pool of draws, the
+ones at the midpoints of equal-count bins of the pool's mean rates, so that tuning on 8 schedules sees
+the generator's spread of rates (8 plain draws had a mean rate of 0.86 against the generator's 1.49).
 """
 
 from __future__ import annotations
@@ -32,7 +35,11 @@ HOLD_RANGE = (1.0, 4.0)
 RAMP_RANGE = (0.5, 2.0)
 """Durations of the ramps (time units), drawn uniformly."""
 FIXED_SPLITS = {"validation": (8, 1_000), "test": (16, 2_000)}
-"""Fixed schedules per split: (count, seed of the first; schedule k uses seed + k)."""
+"""Fixed schedules per split: (count, seed of the first draw). Test schedule k uses seed + k; the
+validation schedules are chosen from the draws of seeds ``seed .. seed + pool - 1``
+(:data:`STRATIFIED_POOLS`, :func:`split_seeds`)."""
+STRATIFIED_POOLS = {"validation": 64}
+"""Pool size of the splits whose schedules are stratified by mean rate."""
 DATA_FILE = "schedules.json"
 
 
@@ -83,6 +90,49 @@ def draw_schedule(
     return sim.schedule_from_segments(segments, start)
 
 
+def mean_rate(schedule: sim.PiecewiseLinear, duration: float) -> float:
+    """Time average of the rate over ``[0, duration]`` (units gammadot_ref)."""
+    return schedule.integral(0.0, duration) / duration
+
+
+def spread_order(count: int) -> list[int]:
+    """``0 .. count-1`` in an order whose every prefix spreads over the range: the bit-reversal
+    (van der Corput) permutation for a power of two, e.g. ``[0, 4, 2, 6, 1, 5, 3, 7]`` for 8 (other counts:
+    the order of the bit-reversed values of the next power of two, skipping those >= count)."""
+    bits = max(1, (count - 1).bit_length())
+    reverse = [int(format(k, f"0{bits}b")[::-1], 2) for k in range(2**bits)]
+    return [r for r in reverse if r < count]
+
+
+def split_seeds(
+    split: str,
+    duration: float = 12.0,
+    rate_range: Sequence[float] = RATE_RANGE,
+    hold_range: Sequence[float] = HOLD_RANGE,
+    ramp_range: Sequence[float] = RAMP_RANGE,
+) -> list[int]:
+    """Seeds of the fixed schedules of ``split`` drawn with these parameters (schedule ``k`` is
+    ``draw_schedule(np.random.default_rng(seeds[k]), duration, ...)``).
+
+    Test: ``seed + k``. Validation (:data:`STRATIFIED_POOLS`): the ``pool`` draws of ``seed .. seed+pool-1``
+    sorted by :func:`mean_rate` (ties by seed); schedule ``k`` is the one at rank
+    ``floor((j + 1/2) pool / count)`` with ``j = spread_order(count)[k]``, the midpoint of the ``j``-th of
+    ``count`` equal-count bins. Any prefix of the split (``--tune-episodes 4``) then spreads over the rates.
+    """
+    if split not in FIXED_SPLITS:
+        raise ValueError(f"split must be one of {', '.join(FIXED_SPLITS)} for fixed schedules, got {split!r}")
+    count, seed = FIXED_SPLITS[split]
+    pool = STRATIFIED_POOLS.get(split)
+    if pool is None:
+        return [seed + k for k in range(count)]
+    draws = {}
+    for s in range(seed, seed + pool):
+        drawn = draw_schedule(np.random.default_rng(s), duration, rate_range, hold_range, ramp_range)
+        draws[s] = mean_rate(drawn, duration)
+    ranked = sorted(draws, key=lambda s: (draws[s], s))
+    return [ranked[int((j + 0.5) * pool / count)] for j in spread_order(count)]
+
+
 def schedule_to_dict(schedule: sim.PiecewiseLinear) -> dict[str, list[float]]:
     """JSON-ready knots ``{"times": [...], "rates": [...]}``."""
     return {"times": list(schedule.times), "rates": list(schedule.values)}
@@ -118,11 +168,12 @@ def write_fixed_schedules(path: str | Path, duration: float = 12.0) -> None:
         "hold_range": list(HOLD_RANGE),
         "ramp_range": list(RAMP_RANGE),
         "generator": "dipenv.schedules.draw_schedule(np.random.default_rng(seed), duration)",
+        "seeds": "dipenv.schedules.split_seeds(split, duration): test seed + k, validation by mean rate",
     }
-    for split, (count, seed) in FIXED_SPLITS.items():
+    for split in FIXED_SPLITS:
         out[split] = [
-            {"seed": seed + k, **schedule_to_dict(draw_schedule(np.random.default_rng(seed + k), duration))}
-            for k in range(count)
+            {"seed": s, **schedule_to_dict(draw_schedule(np.random.default_rng(s), duration))}
+            for s in split_seeds(split, duration)
         ]
     Path(path).write_text(json.dumps(out, indent=1) + "\n")
 

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import dipenv  # noqa: F401  (registers the ids)
+import sim
 from agents import controllers
 from agents.controllers import FeedForwardController, PIController, parse_grid
 from dipenv.actions import FieldStrengthMapping
@@ -221,6 +222,31 @@ def test_feedforward_is_refused_on_the_stress_only_env(
         )
     assert exit_info.value.code == 2
     assert "log10_shear_rate" in capsys.readouterr().err
+
+
+def test_a_changed_schedule_is_simulated_again(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The start-state library key does not cover the shear-rate schedules, so a point's identity holds a
+    digest of its split's schedules: when the shipped schedules change (as the validation split's did on
+    2026-12-03), stored points are not reused."""
+    from dipenv.envs.thickening_control import ThickeningControlEnv
+
+    argv = ["--env", TINY, "--controller", "feedforward", "--grid", "mason_star=1"]
+    argv += ["--tune-episodes", "1", "--episodes", "1", "--out", str(tmp_path / "ff")]
+    controllers.main(argv)
+    calls: list[str] = []
+    real = controllers.run_episode
+
+    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
+        calls.append(split)
+        return real(env, policy, split, index)
+
+    monkeypatch.setattr(controllers, "run_episode", counted)
+    controllers.main(argv)
+    assert calls == []  # same schedules: every point reused
+    faster = sim.PiecewiseLinear((0.0, 1.0), (2.0, 2.0))
+    monkeypatch.setattr(ThickeningControlEnv, "fixed_schedule", lambda self, split, index: faster)
+    controllers.main(argv)
+    assert calls == ["validation", "test"]
 
 
 def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(

@@ -12,8 +12,11 @@ from dipenv.schedules import (
     FIXED_SPLITS,
     draw_schedule,
     fixed_schedules,
+    mean_rate,
     schedule_from_dict,
     schedule_to_dict,
+    split_seeds,
+    spread_order,
 )
 
 
@@ -55,9 +58,29 @@ def test_shipped_schedules_are_the_generator_s_from_their_seeds() -> None:
     for split, (count, seed) in FIXED_SPLITS.items():
         shipped = fixed_schedules(split)
         assert len(shipped) == count
+        seeds = split_seeds(split)
+        if split == "test":
+            assert seeds == [seed + k for k in range(count)]
         for k, schedule in enumerate(shipped):
-            assert schedule == draw_schedule(np.random.default_rng(seed + k), 12.0)
+            assert schedule == draw_schedule(np.random.default_rng(seeds[k]), 12.0)
             assert schedule_from_dict(schedule_to_dict(schedule)) == schedule
+
+
+def test_validation_schedules_are_stratified_by_mean_rate() -> None:
+    """The 8 validation schedules sit at the midpoints of 8 equal-count bins of a 64-draw pool's mean
+    rates: one per bin, and their mean rate is within 10% of the pool's (the first 8 plain draws were at
+    0.86 against the pool's 1.48). Any prefix spreads: the first 4 come from bins 0, 4, 2, 6."""
+    count, seed = FIXED_SPLITS["validation"]
+    pool = sorted(
+        (mean_rate(draw_schedule(np.random.default_rng(s), 12.0), 12.0), s) for s in range(seed, seed + 64)
+    )
+    rank = {s: r for r, (_, s) in enumerate(pool)}
+    bins = [rank[s] // 8 for s in split_seeds("validation")]
+    assert bins == spread_order(count) == [0, 4, 2, 6, 1, 5, 3, 7]
+    chosen = np.mean([mean_rate(x, 12.0) for x in fixed_schedules("validation")])
+    pool_mean = np.mean([m for m, _ in pool])
+    assert abs(chosen / pool_mean - 1.0) < 0.1
+    assert sorted(spread_order(5)) == list(range(5)) and spread_order(1) == [0]
 
 
 @pytest.mark.parametrize(

@@ -24,10 +24,12 @@ from dipenv.schedules import (
     HOLD_RANGE,
     RAMP_RANGE,
     RATE_RANGE,
+    STRATIFIED_POOLS,
     draw_schedule,
     fixed_schedules,
     schedule_from_dict,
     schedule_to_dict,
+    split_seeds,
 )
 
 DEFAULT_MAX_PIECE = 0.05
@@ -115,6 +117,9 @@ class ThickeningControlEnv(FieldControlEnv):
       N = 300's plateau (:data:`dipenv.rewards.DEFAULT_VISCOSITY_CAP`); ``w_E = 0.3`` instead of 1
       (revised 2026-12-03, before any policy was trained on v1: at 1 no constant field beats no field
       in the N = 300 box). Everything else is as v0.
+    * 2026-12-03, both versions, before any controller or policy was tuned on the new split: the 8
+      validation schedules are stratified by mean rate (:func:`dipenv.schedules.split_seeds`; the first 8
+      draws had a mean rate of 0.86, the generator's is 1.49). The test schedules are unchanged.
     """
 
     __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
@@ -188,8 +193,13 @@ class ThickeningControlEnv(FieldControlEnv):
         )
         if defaults and index < count:
             return fixed_schedules(split)[index]
-        rng = np.random.default_rng(seed + index)
-        return draw_schedule(rng, self.episode_duration, self.rate_range, self.hold_range, self.ramp_range)
+        parameters = (self.rate_range, self.hold_range, self.ramp_range)
+        if index < count:
+            index_seed = split_seeds(split, self.episode_duration, *parameters)[index]
+        else:
+            index_seed = seed + STRATIFIED_POOLS.get(split, 0) + index  # past the split's own draws
+        rng = np.random.default_rng(index_seed)
+        return draw_schedule(rng, self.episode_duration, *parameters)
 
     # -- Gymnasium API ---------------------------------------------------------------------------------------
     def reset(
