@@ -143,6 +143,19 @@ def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) 
     assert point.read_bytes() == before
 
 
+def count_episodes(monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """Record the split of every episode that ``agents.controllers`` simulates from now on."""
+    calls: list[str] = []
+    real = controllers.run_episode
+
+    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
+        calls.append(split)
+        return real(env, policy, split, index)
+
+    monkeypatch.setattr(controllers, "run_episode", counted)
+    return calls
+
+
 def test_another_energy_weight_rescores_the_stored_points(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
@@ -155,14 +168,7 @@ def test_another_energy_weight_rescores_the_stored_points(
     argv = ["--env", TINY, "--controller", "feedforward", "--grid", "mason_star=0.5,4"]
     argv += ["--tune-episodes", "1", "--episodes", "1", "--out", str(out)]
     controllers.main(argv)
-    calls: list[str] = []
-    real = controllers.run_episode
-
-    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
-        calls.append(split)
-        return real(env, policy, split, index)
-
-    monkeypatch.setattr(controllers, "run_episode", counted)
+    calls = count_episodes(monkeypatch)
     summary = controllers.main([*argv, "--env-kwargs", '{"energy_weight": 100}'])
     assert "validation" not in calls and len(calls) <= 1
     assert summary["tuned_params"] == {"mason_star": 4.0}
@@ -233,14 +239,7 @@ def test_a_changed_schedule_is_simulated_again(tmp_path: Path, monkeypatch: pyte
     argv = ["--env", TINY, "--controller", "feedforward", "--grid", "mason_star=1"]
     argv += ["--tune-episodes", "1", "--episodes", "1", "--out", str(tmp_path / "ff")]
     controllers.main(argv)
-    calls: list[str] = []
-    real = controllers.run_episode
-
-    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
-        calls.append(split)
-        return real(env, policy, split, index)
-
-    monkeypatch.setattr(controllers, "run_episode", counted)
+    calls = count_episodes(monkeypatch)
     controllers.main(argv)
     assert calls == []  # same schedules: every point reused
     faster = sim.PiecewiseLinear((0.0, 1.0), (2.0, 2.0))
