@@ -30,8 +30,8 @@ the point with the highest mean return, and plays it on ``--split``. Output, in 
 (one JSON per grid point), ``DIR/tuning.csv``, ``DIR/points/<label>.json`` (the tuned controller on the
 test split), ``DIR/controller.json`` and ``DIR/command.txt``. Points whose stored identity matches are
 reused, so a killed run resumes point by point. The identity leaves out the energy weight ``w_E``: a rerun
-with another ``energy_weight`` rescores the stored returns (:func:`agents.open_loop.rescore`), picks the
-tuning point again and plays only a newly picked one on ``--split``.
+with another ``energy_weight`` rescores the stored returns (:func:`agents.open_loop.rescore_stored`),
+picks the tuning point again and plays only a newly picked one on ``--split``.
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.open_loop import _finite, read_json, rescore, write_json
+from agents.open_loop import _finite, read_json, rescore_stored, write_json
 from agents.rollout import make_env, run_episode
 from agents.tasks import run_tasks
 from agents.usage import (
@@ -262,16 +262,6 @@ def schedule_digest(unwrapped: Any, split: str, episodes: int) -> str:
     return hashlib.sha256(json.dumps(knots).encode()).hexdigest()[:16]
 
 
-def rescored(record: dict[str, Any], reward: Any, folder: Path) -> dict[str, Any]:
-    """``record`` with its returns recomputed by ``reward`` (:func:`agents.open_loop.rescore`), rewritten
-    in ``folder`` if they changed, so that the stored rewards are always those of the last reward used."""
-    before = [e["return"] for e in record["episodes"]]
-    record = rescore(record, reward)
-    if [e["return"] for e in record["episodes"]] != before:
-        write_json(folder / f"{record['label']}.json", record)
-    return record
-
-
 def mean_return(record: dict[str, Any]) -> float:
     returns = [e["return"] for e in record["episodes"]]
     return float(np.mean(returns)) if returns else -math.inf
@@ -385,7 +375,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         workers=args.workers,
         scheduler=args.scheduler,
     )
-    tuning = [rescored(record, reward, args.out / "tuning") for record in tuning]
+    tuning = [rescore_stored(r, reward, args.out / "tuning" / f"{r['label']}.json") for r in tuning]
     lines = [",".join([*sorted(grid), "return", "time_above_cap", "excess_viscosity", "energy_mean"])]
     for record in tuning:
         eps = record["episodes"]
@@ -409,7 +399,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         workers=1,
         scheduler=args.scheduler,
     )[0]
-    tuned = rescored(tuned, reward, args.out / "points")
+    tuned = rescore_stored(tuned, reward, args.out / "points" / f"{tuned['label']}.json")
     summary = {
         "env_id": args.env,
         "env_kwargs": env_kwargs,

@@ -124,11 +124,7 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
         old = read_json(path)
         if _finite(old.get("identity")) == identity:  # read_json turned "inf" back into floats
             env.close()
-            before = [e["return"] for e in old["episodes"]]
-            record = rescore(old, unwrapped.reward_function)
-            if [e["return"] for e in record["episodes"]] != before:
-                write_json(path, record)  # the stored rewards are always those of the last reward used
-            return record
+            return rescore_stored(old, unwrapped.reward_function, path)
     episodes = []
     for index in range(payload["episodes"]):
         trace = run_episode(env, constant_policy(action), payload["split"], index)
@@ -162,6 +158,16 @@ def rescore(record: dict[str, Any], reward: Any) -> dict[str, Any]:
             rewards.append(trace["reward"][-1])
         trace["reward"] = rewards
         episode["return"] = float(np.sum(rewards))
+    return record
+
+
+def rescore_stored(record: dict[str, Any], reward: Any, path: Path) -> dict[str, Any]:
+    """:func:`rescore` of a record stored at ``path``, written back there if its returns changed, so that
+    the stored rewards are always those of the last reward used."""
+    before = [e["return"] for e in record["episodes"]]
+    record = rescore(record, reward)
+    if [e["return"] for e in record["episodes"]] != before:
+        write_json(path, record)
     return record
 
 
