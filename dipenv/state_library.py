@@ -32,10 +32,12 @@ import hashlib
 import importlib.util
 import json
 import math
+import multiprocessing
 import os
 import tempfile
 import warnings
 from collections.abc import Iterable
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -288,8 +290,14 @@ class StateLibrary:
         """``(split, index)`` of the states not on disk yet."""
         return [(s, i) for s in splits for i in range(self.split_sizes[s]) if not self.path(s, i).exists()]
 
-    def ensure(self, splits: Iterable[str] = SPLITS, progress: bool = True) -> None:
-        """Generate the missing states of ``splits`` (progress bar on stderr unless ``progress=False``)."""
+    def ensure(self, splits: Iterable[str] = SPLITS, progress: bool = True, workers: int = 1) -> None:
+        """Generate the missing states of ``splits`` (progress bar on stderr unless ``progress=False``).
+
+        ``workers > 1`` pre-shears that many states at once in separate processes (each state is
+        independent, so the files are the same as with one worker). A state that another process wrote
+        meanwhile is not generated again."""
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
         self._discard_if_stale()
         todo = self.missing(list(splits))
         if not todo:
@@ -303,7 +311,22 @@ class StateLibrary:
             f"pre-shearing start states (N={self.config.n_particles}, phi={self.config.volume_fraction}, "
             f"{self.preshear_strain:g} strains)"
         )
-        for split, index in tqdm(todo, desc=description, unit="state", disable=not progress, leave=False):
+        bar = tqdm(total=len(todo), desc=description, unit="state", disable=not progress, leave=False)
+        with bar:
+            if workers == 1 or len(todo) == 1:
+                for split, index in todo:
+                    self._generate_if_missing(split, index)
+                    bar.update()
+                return
+            context = multiprocessing.get_context("spawn")
+            with ProcessPoolExecutor(min(workers, len(todo)), mp_context=context) as pool:
+                jobs = [pool.submit(self._generate_if_missing, split, index) for split, index in todo]
+                for job in as_completed(jobs):
+                    job.result()
+                    bar.update()
+
+    def _generate_if_missing(self, split: str, index: int) -> None:
+        if not self.path(split, index).exists():
             self._generate(split, index)
 
     def stale_reason(self) -> str | None:

@@ -133,6 +133,28 @@ def test_library_generates_once_and_reloads(tmp_path: Path) -> None:
     assert (library.directory / "library.json").exists()
 
 
+def test_library_workers_write_the_same_states_as_one_process(tmp_path: Path) -> None:
+    """Two worker processes pre-shear the states of one library: the files equal those of a serial run
+    bit for bit (each state depends on its packing seed only), and a bad worker count is refused."""
+    config = sim.SimulationConfig(n_particles=32, volume_fraction=0.45, near_field_cutoff=3.0)
+    sizes = {"train": 2, "validation": 1, "test": 1}
+    serial, pooled = (
+        StateLibrary(config, preshear_strain=0.2, tail_strain=0.1, root=tmp_path / name, split_sizes=sizes)
+        for name in ("a", "b")
+    )
+    serial.ensure(["train", "test"], progress=False)
+    pooled.ensure(["train", "test"], progress=False, workers=2)
+    assert pooled.missing(["train", "test"]) == [] and len(pooled.missing()) == 1
+    for split, index in (("train", 0), ("train", 1), ("test", 0)):
+        with np.load(serial.path(split, index)) as a, np.load(pooled.path(split, index)) as b:
+            assert sorted(a.files) == sorted(b.files)
+            for name in a.files:
+                np.testing.assert_array_equal(a[name], b[name])
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="workers"):
+            pooled.ensure(["validation"], progress=False, workers=bad)  # type: ignore[arg-type]
+
+
 def _tiny_library(root: Path) -> StateLibrary:
     config = sim.SimulationConfig(n_particles=32, volume_fraction=0.45, near_field_cutoff=3.0)
     sizes = {"train": 1, "validation": 1, "test": 1}
