@@ -1,6 +1,6 @@
 """Hand-made controllers for the thickening-control environments, tuned on validation, run on test.
 
-    python -m agents.controllers --env dipenv/ThickeningControl-v1 --controller feedforward --out DIR
+    python -m agents.controllers --env dipenv/ThickeningControl-v2 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
         [--tune-episodes N] [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS]
 
@@ -271,7 +271,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--env", default="dipenv/ThickeningControl-v1")
+    parser.add_argument("--env", default="dipenv/ThickeningControl-v2")
     parser.add_argument("--controller", required=True, choices=CONTROLLERS)
     parser.add_argument(
         "--grid",

@@ -6,9 +6,9 @@
 
 ``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
 constant fields (played on the same split, start states and schedules, else exit 2). Runs and controllers
-may come from another env than the baseline's if the two differ only in what the policy observes
-(:func:`physics_difference`): ``ThickeningControlStressOnly-v1``'s rows share
-``ThickeningControl-v1``'s constant fields. For the
+may come from another env than the baseline's if the two differ only in what the policy observes or in
+the map from actions to fields (:func:`physics_difference`): ``ThickeningControlStressOnly-v2``'s rows
+share ``ThickeningControl-v2``'s constant fields, and those share ``ThickeningControl-v1``'s. For the
 thickening-control environments the table adds the whole-episode metrics of :mod:`agents.rollout`: the
 fraction of intervals above the cap, the excess ``eta_r`` over it and the field energy.
 
@@ -170,15 +170,21 @@ def start_state_library(config: dict[str, Any]) -> str:
 OBSERVATION_SETTINGS = ("observation", "history_length")
 """Env settings that shape only what a policy sees, not the trajectory a given action sequence makes."""
 
+ACTION_MAP_SETTINGS = ("mason_min", "mason_max", "off_band")
+"""Env settings of the map from the action ``u`` to ``Mn_ref``. A constant field is named by its
+``Mn_ref`` (each env computes its own action for it), so two envs whose maps differ play the same constant
+field on the same physics: ``ThickeningControl-v2`` (strongest field 0.1) may share ``-v1``'s baseline
+(0.05), whose points at ``Mn_ref`` 0.2 to 2 both envs can hold."""
+
 
 def physics_difference(
     env_id: str, env_kwargs: dict[str, Any], other_id: str, other_kwargs: dict[str, Any]
 ) -> list[str]:
     """The ``settings()`` entries in which two envs differ, leaving out what only the observation
-    (:data:`OBSERVATION_SETTINGS`) or the rescored energy weight depend on: an empty list means that the
-    same actions make the same episodes and metrics in both (e.g. ``ThickeningControl-v1`` and its
-    stress-only sibling), so that one's constant-field baseline serves the other's policies and
-    controllers."""
+    (:data:`OBSERVATION_SETTINGS`), the action map (:data:`ACTION_MAP_SETTINGS`) or the rescored energy
+    weight depend on: an empty list means that the same fields make the same episodes and metrics in both
+    (e.g. ``ThickeningControl-v2``, its stress-only sibling and ``ThickeningControl-v1``), so that one's
+    constant-field baseline serves the other's policies and controllers."""
 
     def physics(env_name: str, kwargs: dict[str, Any]) -> dict[str, Any]:
         env = make_env(env_name, {**kwargs, "progress": False})
@@ -186,7 +192,7 @@ def physics_difference(
             settings = env.unwrapped.settings()  # type: ignore[attr-defined]
         finally:
             env.close()
-        for name in OBSERVATION_SETTINGS:
+        for name in OBSERVATION_SETTINGS + ACTION_MAP_SETTINGS:
             settings.pop(name, None)
         settings["reward"] = {k: v for k, v in settings["reward"].items() if k != "energy_weight"}
         return settings
@@ -720,7 +726,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             usage_error(
                 PROG,
                 f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}, and "
-                f"they differ in {', '.join(differing)} (beyond what the policy observes)",
+                f"they differ in {', '.join(differing)} (beyond what the policy observes and the map from "
+                "actions to fields)",
             )
     split = args.split or pareto["split"]
     if split != pareto["split"]:

@@ -339,3 +339,35 @@ def test_evaluate_shares_a_baseline_between_envs_that_differ_only_in_the_observa
         evaluate.main(["--controllers", str(other_cap), "--baseline", str(baseline), "--out", str(out)])
     assert exit_info.value.code == 2
     assert "differ in reward" in capsys.readouterr().err
+
+
+def test_a_constant_field_makes_the_same_episode_in_either_action_map() -> None:
+    """Why ``agents.evaluate.physics_difference`` leaves out the action map: ``ThickeningControl-v2``
+    (strongest field 0.1) shares ``-v1``'s constant fields (0.05). The tiny env with either ``mason_min``
+    holds ``Mn_ref = 0.5`` through a different action ``u``; the float32 action lands within 1e-8 of 0.5
+    in both maps, and the two episodes' interval eta_r agree to 1.1e-5 (measured). The 1e-3 tolerance
+    leaves room for the chaotic growth of that difference on other platforms; a genuinely different field
+    (``Mn_ref = 0.55``, 10% weaker) moves eta_r by more than that, so the check can fail."""
+    from agents.evaluate import physics_difference
+    from agents.open_loop import constant_action
+
+    def episode(mason_min: float, mason: float) -> np.ndarray:
+        env = gym.make(TINY, progress=False, **{**dipenv.THICKENING_TINY_KWARGS, "mason_min": mason_min})
+        env.reset(seed=0)
+        action = np.array(constant_action(env.unwrapped, mason, None), dtype=np.float32)
+        etas, done = [], False
+        while not done:
+            _, _, terminated, truncated, info = env.step(action)
+            assert info["mason_number"] == pytest.approx(mason, rel=1e-7)
+            etas.append(info["eta_r"])
+            done = terminated or truncated
+        return np.array(etas)
+
+    strong_map, weak_map = episode(0.05, 0.5), episode(0.1, 0.5)
+    np.testing.assert_allclose(strong_map, weak_map, rtol=1e-3)
+    assert np.max(np.abs(episode(0.1, 0.55) / weak_map - 1.0)) > 1e-3
+    assert physics_difference(TINY, {"mason_min": 0.05}, TINY, {}) == []
+    v0, v1, v2 = (f"dipenv/ThickeningControl-v{k}" for k in range(3))
+    assert physics_difference(v2, {}, v1, {}) == []
+    assert physics_difference("dipenv/ThickeningControlStressOnly-v2", {}, v1, {}) == []
+    assert "simulation" in physics_difference(v2, {}, v0, {})

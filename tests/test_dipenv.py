@@ -62,6 +62,8 @@ def test_every_id_is_registered() -> None:
         "dipenv/FieldVector-v1",
         "dipenv/ThickeningControl-v1",
         "dipenv/ThickeningControlStressOnly-v1",
+        "dipenv/ThickeningControl-v2",
+        "dipenv/ThickeningControlStressOnly-v2",
     }
     for env_id in dipenv.ENV_IDS:
         assert gym.spec(env_id).max_episode_steps is None  # the envs truncate at their own episode_steps
@@ -91,6 +93,25 @@ def test_v1_is_v0_in_the_box_of_the_box_size_study(env_id: str) -> None:
     table = DEFAULT_VISCOSITY_CAP if "Thickening" in env_id else DEFAULT_TARGET_VISCOSITY
     assert env.reward_function.target_viscosity == table[(0.45, 300)]
     assert table[(0.45, 300)] != table[(0.45, 64)]
+
+
+@pytest.mark.parametrize("env_id", [i for i in dipenv.ENV_IDS if i.endswith("-v2")])
+def test_v2_is_v1_with_the_strongest_field_at_mn_0_1(env_id: str) -> None:
+    """``-v2`` changes only the strongest field of the action map (``u = 1``: ``Mn_ref`` 0.1, not 0.05);
+    the physics, and so the start-state library and every constant field's episodes, are ``-v1``'s."""
+    v1 = gym.spec(env_id.replace("-v2", "-v1"))
+    v2 = gym.spec(env_id)
+    assert v2.entry_point == v1.entry_point
+    assert v2.kwargs == {**v1.kwargs, "mason_min": 0.1}
+    env1 = gym.make(v1.id, progress=False).unwrapped
+    env2 = gym.make(env_id, progress=False).unwrapped
+    assert env1.mapping.mason_number(1.0) == pytest.approx(0.05, rel=1e-12)
+    assert env2.mapping.mason_number(1.0) == pytest.approx(0.1, rel=1e-12)
+    assert env2.mapping.mason_number(-0.9) == pytest.approx(20.0, rel=1e-12)
+    assert env2.mapping.mason_number(-1.0) == math.inf
+    assert env2.library().key == env1.library().key
+    s1, s2 = env1.settings(), env2.settings()
+    assert (s1.pop("mason_min"), s2.pop("mason_min")) == (0.05, 0.1) and s1 == s2
 
 
 def _wrapper_names(env: gym.Env) -> list[str]:

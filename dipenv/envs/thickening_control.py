@@ -60,7 +60,8 @@ class ThickeningControlEnv(FieldControlEnv):
     ## Action Space
 
     As ``FieldMagnitude-v0``: ``Box(-1, 1, (1,), float32)``; ``u < -0.9`` is off, ``u`` in ``[-0.9, 1]``
-    maps log-linearly to ``Mn_ref`` from 20 to 0.05 (:class:`dipenv.actions.FieldStrengthMapping`).
+    maps log-linearly to ``Mn_ref`` from 20 to ``mason_min`` (:class:`dipenv.actions.FieldStrengthMapping`):
+    0.05 in ``-v0`` and ``-v1``, 0.1 in ``-v2``.
 
     ## Observation Space
 
@@ -120,6 +121,10 @@ class ThickeningControlEnv(FieldControlEnv):
     * 2026-12-03, both versions, before any controller or policy was tuned on the new split: the 8
       validation schedules are stratified by mean rate (:func:`dipenv.schedules.split_seeds`; the first 8
       draws had a mean rate of 0.86, the generator's is 1.49). The test schedules are unchanged.
+    * v2 (2026-12-03): the strongest field is ``Mn_ref = 0.1`` instead of 0.05 (:data:`dipenv.
+      THICKENING_V2_KWARGS`): fields below 0.1 cost more energy per interval than the largest excess
+      eta_r they could remove, and were the slowest to simulate. Physics, schedules and start states are
+      v1's.
     """
 
     __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
