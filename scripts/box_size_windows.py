@@ -65,7 +65,8 @@ def main() -> None:
             if not (run / "timeseries.csv").exists():
                 continue
             r = json.loads(result.read_text())
-            key = (r["volume_fraction"], r["mason_number"], r["n_particles"])
+            # float() reads back the "inf" of a field-free run (JSON has no infinity)
+            key = (float(r["volume_fraction"]), float(r["mason_number"]), int(r["n_particles"]))
             groups[key].append(window_means(run, windows))
     head = " | ".join(f"strain {low:g}-{high:g}" for low, high in windows)
     print(f"| phi | Mn | N | seeds | {head} |")
@@ -81,7 +82,8 @@ def main() -> None:
             se = column.std(ddof=1) / math.sqrt(column.size) if column.size > 1 else 0.0
             per_seed = ", ".join(f"{v:.2f}" for v in column)
             cells.append(f"{column.mean():.2f} ± {se:.2f} ({per_seed})")
-        print(f"| {phi:g} | {mason:g} | {n} | {len(values)} | " + " | ".join(cells) + " |")
+        label = "inf" if math.isinf(mason) else f"{mason:g}"
+        print(f"| {phi:g} | {label} | {n} | {len(values)} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":
