@@ -135,7 +135,8 @@ class PIController:
         setpoint: target of the measured quantity (``eta_r``, or ``Sigma_xy`` in ``eta gammadot_ref``), > 0.
         kp: proportional gain (action units per decade of error), >= 0.
         ki: integral gain (action units per decade per interval), >= 0.
-        u0: action with zero error and zero integral (default 0: ``Mn_ref`` ~ 1 in the default mapping).
+        u0: action with zero error and zero integral (default 0: ``Mn_ref`` 1.17 in the map of ``-v1``,
+            1.63 in that of ``-v2``).
     """
 
     setpoint: float
