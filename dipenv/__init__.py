@@ -91,7 +91,7 @@ costs ``w_E / Mn_ref > 3`` per interval, about the largest excess eta_r a field-
 (p99 4.0 on the test schedules), while no constant field below ``Mn_ref = 0.3`` lowered the excess any
 further; yet those fields were the most expensive to simulate (the adaptive step: 55 s per time unit at
 ``Mn_ref = 0.05`` against 13 at 0.2, rate 1) and an untrained policy spends about 16% of its actions at
-``u = 1`` (docs/thickening_control.md#action-range)."""
+``u = 1`` (docs/thickening_control.md#action-range-v2)."""
 
 _THICKENING = "dipenv.envs.thickening_control"
 _SPECS = {
