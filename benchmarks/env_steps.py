@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 import os
 import time
 
@@ -80,6 +81,19 @@ def main() -> None:
     parser.add_argument("--policy", default="random", help="random, gaussian or constant:U")
     parser.add_argument("--seeds", type=int, default=1, help="one-process repeats (start states, actions)")
     args = parser.parse_args()
+    for name in ("steps", "tiny_steps", "n_envs", "seeds"):
+        if getattr(args, name) < 1:
+            parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")  # exit 2
+    if args.policy not in ("random", "gaussian"):
+        prefix, _, value = args.policy.partition(":")
+        try:
+            constant = float(value) if prefix == "constant" else math.nan
+        except ValueError:
+            constant = math.nan
+        if not -1.0 <= constant <= 1.0:
+            parser.error(
+                f"--policy must be random, gaussian or constant:U with U in [-1, 1], got {args.policy!r}"
+            )
     for env_id in args.ids:  # generate the start states first, untimed
         env = make_env(env_id, {"progress": True})
         env.unwrapped.library().ensure(["train"])  # type: ignore[attr-defined]
