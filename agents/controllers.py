@@ -2,7 +2,8 @@
 
     python -m agents.controllers --env dipenv/ThickeningControl-v2 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
-        [--tune-episodes N] [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS]
+        [--tune-episodes N] [--repeats K] [--tune-repeats K] [--env-kwargs JSON] [--workers W]
+        [--scheduler ADDRESS]
 
 Two controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
@@ -29,7 +30,10 @@ the point with the highest mean return, and plays it on ``--split``. Output, in 
 ``agents.open_loop`` so that ``agents.evaluate --controllers DIR`` reads it as a row: ``DIR/tuning/``
 (one JSON per grid point), ``DIR/tuning.csv``, ``DIR/points/<label>.json`` (the tuned controller on the
 test split), ``DIR/controller.json`` and ``DIR/command.txt``. Points whose stored identity matches are
-reused, so a killed run resumes point by point. The identity leaves out the energy weight ``w_E``: a rerun
+reused, so a killed run resumes point by point (episode by episode). ``--repeats`` (``--tune-repeats``)
+plays each state of ``--split`` (``--tune-split``) K times, realisations 0 .. K-1 of
+:mod:`dipenv.realisations`; a rerun with a larger K adds the missing realisations to the stored ones.
+The identity leaves out the energy weight ``w_E``: a rerun
 with another ``energy_weight`` rescores the stored returns (:func:`agents.open_loop.rescore_stored`),
 picks the tuning point again and plays only a newly picked one on ``--split``.
 """
@@ -44,13 +48,13 @@ import math
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.open_loop import _finite, read_json, rescore_stored, write_json
-from agents.rollout import make_env, run_episode
+from agents.open_loop import _finite, play_missing, rescore_stored, write_json
+from agents.repeats import per_state
+from agents.rollout import make_env
 from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
@@ -196,32 +200,23 @@ def point_label(kind: str, params: dict[str, float]) -> str:
 
 
 def run_point(payload: dict[str, Any]) -> dict[str, Any]:
-    """One controller over the first ``episodes`` states of a split (a task); reuses a stored record
-    with the same identity, else writes one."""
-    path = Path(payload["path"])
-    identity = _finite(payload["identity"])
-    if path.exists():
-        old = read_json(path)
-        if _finite(old.get("identity")) == identity:
-            return dict(old)
+    """One controller over the first ``episodes`` states of a split, ``repeats`` realisations each (a
+    task); reuses the episodes of a stored record with the same identity and plays the missing ones
+    (:func:`agents.open_loop.play_missing`)."""
     env = make_env(payload["env_id"], payload["env_kwargs"])
     controller = make_controller(payload["controller"], payload["params"]).bind(env)
-    episodes = []
-    for index in range(payload["episodes"]):
-        trace = run_episode(env, controller, payload["split"], index)
-        episodes.append({**trace.summary(), "trace": trace.to_dict()})
-    env.close()
     record = {
-        "identity": identity,
+        "identity": _finite(payload["identity"]),
         "label": payload["label"],
         "controller": payload["controller"],
         "params": payload["params"],
         "mason_number": math.nan,
         "direction": None,
         "action": [],
-        "episodes": episodes,
+        "episodes": [],
     }
-    write_json(path, record)
+    record = play_missing(record, payload, env, lambda: controller, lambda old: _finite(old.get("identity")))
+    env.close()
     return record
 
 
@@ -264,8 +259,9 @@ def schedule_digest(unwrapped: Any, split: str, episodes: int) -> str:
 
 
 def mean_return(record: dict[str, Any]) -> float:
-    returns = [e["return"] for e in record["episodes"]]
-    return float(np.mean(returns)) if returns else -math.inf
+    """Mean return over the states (each state's realisations averaged first)."""
+    returns = per_state(record["episodes"], "return")[1]
+    return float(np.mean(returns)) if returns.size else -math.inf
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -284,6 +280,18 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--tune-episodes", type=int, default=None, help="default: the whole tuning split")
     parser.add_argument("--split", default="test")
     parser.add_argument("--episodes", type=int, default=None, help="default: the whole split")
+    parser.add_argument(
+        "--repeats",
+        type=integer_at_least(1),
+        default=1,
+        help="realisations per --split state for the tuned controller (dipenv.realisations), >= 1",
+    )
+    parser.add_argument(
+        "--tune-repeats",
+        type=integer_at_least(1),
+        default=1,
+        help="realisations per --tune-split state for every grid point, >= 1",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
@@ -345,9 +353,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         " ".join([sys.executable, "-m", "agents.controllers", *sys.argv[1:]]) + "\n"
     )
 
-    def payload(params: dict[str, float], split: str, episodes: int, folder: str) -> dict[str, Any]:
+    def payload(
+        params: dict[str, float], split: str, episodes: int, folder: str, repeats: int
+    ) -> dict[str, Any]:
         label = point_label(args.controller, params)
         return {
+            "repeats": repeats,
             "env_id": args.env,
             "env_kwargs": {**env_kwargs, "progress": False},
             "controller": args.controller,
@@ -372,7 +383,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     tune_n = counts[args.tune_split, "--tune-split"]
     tuning = run_tasks(
         run_point,
-        [payload(p, args.tune_split, tune_n, "tuning") for p in points],
+        [payload(p, args.tune_split, tune_n, "tuning", args.tune_repeats) for p in points],
         workers=args.workers,
         scheduler=args.scheduler,
     )
@@ -386,7 +397,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 + [
                     f"{mean_return(record):.4f}",
                     *(
-                        f"{np.nanmean([e.get(m, math.nan) for e in eps]):.4f}"
+                        f"{np.nanmean([e.get(m, math.nan) for e in eps]):.4f}"  # equal repeats per state
                         for m in ("time_above_cap", "excess_viscosity", "energy_mean")
                     ),
                 ]
@@ -396,7 +407,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     best = max(tuning, key=mean_return)
     tuned = run_tasks(
         run_point,
-        [payload(best["params"], args.split, counts[args.split, "--split"], "points")],
+        [payload(best["params"], args.split, counts[args.split, "--split"], "points", args.repeats)],
         workers=1,
         scheduler=args.scheduler,
     )[0]

@@ -1,8 +1,13 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
-        [--split test] [--episodes N] [--model final|best] [--actions mean|sampled|both] [--workers 2]
-        [--scheduler ADDRESS]
+        [--split test] [--episodes N] [--repeats K] [--model final|best] [--actions mean|sampled|both]
+        [--workers 2] [--scheduler ADDRESS]
+
+``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
+the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
+controllers must hold those realisations (their commands' ``--repeats``), else exit 2. Every statistic
+averages a state's realisations first (:mod:`agents.repeats`): the intervals stay over states and seeds.
 
 ``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
 constant fields (played on the same split, start states and schedules, else exit 2). Runs and controllers
@@ -54,6 +59,7 @@ import yaml
 
 from agents.comparison import action_variation, front_eta, front_points, position, return_gap
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
+from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
 from agents.rollout import make_env, run_episode
 from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
@@ -225,7 +231,7 @@ def check_same_states(
 
 
 def load_controller(
-    folder: Path, pareto: dict[str, Any], split: str, indices: list[int], reward: Any
+    folder: Path, pareto: dict[str, Any], split: str, indices: list[int], reward: Any, repeats: int = 1
 ) -> tuple[str, dict[str, Any]]:
     """The tuned controller of an ``agents.controllers`` folder as ``(row name, record)``, its returns
     rescored with ``reward``; exit 2 unless it was played in the baseline's env on the same start states
@@ -239,7 +245,7 @@ def load_controller(
     if not record_file.is_file():
         usage_error(PROG, f"--controllers: {record_file} is missing (rerun the agents.controllers command)")
     record = read_json(record_file)
-    played = {e["index"] for e in record["episodes"]}
+    absent = missing(record["episodes"], indices, repeats)
     problems = []
     if (summary["env_id"], summary["env_kwargs"]) != (pareto["env_id"], pareto["env_kwargs"]):
         differing = physics_difference(
@@ -254,8 +260,12 @@ def load_controller(
         problems.append(f"split {summary['split']} (evaluated: {split})")
     if summary.get("library_key") != pareto.get("library_key"):
         problems.append(f"start-state library {summary.get('library_key')} ({pareto.get('library_key')})")
-    if not set(indices) <= played:
-        problems.append(f"states {sorted(played)} (needed: {indices})")
+    if absent:
+        problems.append(
+            f"(state, realisation) {absent[:4]}{' ...' if len(absent) > 4 else ''} missing (needed: states "
+            f"{indices}, realisations 0-{repeats - 1}; rerun its agents.controllers command with --repeats "
+            f"{repeats})"
+        )
     if problems:
         usage_error(PROG, f"--controllers: {folder} was played on other episodes: " + "; ".join(problems))
     tuned_weight = summary.get("energy_weight", reward.energy_weight)
@@ -267,6 +277,7 @@ def load_controller(
             f"'{{\"energy_weight\": {reward.energy_weight:g}}}' (it rescores the stored points and re-picks)",
         )
     params = ", ".join(f"{k} {v:g}" for k, v in summary["tuned_params"].items())
+    record = {**record, "episodes": select(record["episodes"], indices, repeats)}
     return f"{summary['controller']} ({params}; tuned on {summary['tune_split']})", rescore(record, reward)
 
 
@@ -302,9 +313,11 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     env = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     episodes = []
     for index in payload["indices"]:
-        torch.manual_seed(index)  # the stochastic policy's samples: reproducible per start state
-        trace = run_episode(env, policy, payload["split"], index)
-        episodes.append({**trace.summary(), "trace": trace.to_dict()})
+        for realisation in range(payload.get("repeats", 1)):
+            # the stochastic policy's samples: reproducible per start state and realisation
+            torch.manual_seed(index + 100_003 * realisation)
+            trace = run_episode(env, policy, payload["split"], index, realisation=realisation)
+            episodes.append({**trace.summary(), "trace": trace.to_dict()})
     key = env.unwrapped.library().key  # type: ignore[attr-defined]
     env.close()
     record = {
@@ -321,9 +334,10 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
 
 
 def _scores(records: list[dict[str, Any]], key: str) -> np.ndarray:
-    """The ``(training seeds, start states)`` matrix of an episode metric; where an episode failed (NaN),
-    the per-seed averages over the finite episodes instead (a vector: seeds as runs of one task)."""
-    matrix = np.array([[e[key] for e in sorted(r["episodes"], key=lambda e: e["index"])] for r in records])
+    """The ``(training seeds, start states)`` matrix of an episode metric (each state's realisations
+    averaged); where an episode failed (NaN), the per-seed averages over the finite episodes instead (a
+    vector: seeds as runs of one task)."""
+    matrix = np.array([per_state(r["episodes"], key)[1] for r in records])
     if matrix.size and np.all(np.isfinite(matrix)):
         return matrix
     return np.array([np.nanmean(row) if np.isfinite(row).any() else np.nan for row in matrix])
@@ -350,7 +364,7 @@ def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]
     (tasks) (:mod:`agents.statistics`); ``per_seed`` holds each seed's average over the states."""
     metrics = _metrics([e for r in records for e in r["episodes"]])
     per_seed = {
-        metric: [float(np.nanmean([e[key] for e in r["episodes"]])) for r in records]
+        metric: [float(np.nanmean(per_state(r["episodes"], key)[1])) for r in records]
         for metric, key in metrics
     }
     return {
@@ -360,19 +374,27 @@ def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]
         **{metric: interval_estimates(_scores(records, key)) for metric, key in metrics},
         "per_seed": per_seed,
         "returns": _scores(records, "return").tolist(),
+        "episode_noise": within_state_sd([e for r in records for e in r["episodes"]], "return"),
     }
 
 
 def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) -> dict[str, Any]:
     """A constant field or a controller (deterministic given the state): mean and IQM with their 95%
-    bootstrap intervals over the start states."""
-    episodes = sorted((e for e in record["episodes"] if e["index"] in indices), key=lambda e: e["index"])
+    bootstrap intervals over the start states (each state's realisations averaged first)."""
+    episodes = [e for e in record["episodes"] if e["index"] in indices]
+    states = len({e["index"] for e in episodes})
+    repeats = len(episodes) // max(states, 1)
+    samples = f"{states} start states" + (f" x {repeats} realisations" if repeats > 1 else "")
     return {
         "name": name,
-        "samples": f"{len(episodes)} start states",
+        "samples": samples,
         "failures": sum(bool(e["failed"]) for e in episodes),
-        **{metric: interval_estimates([e[key] for e in episodes]) for metric, key in _metrics(episodes)},
-        "returns": [[e["return"] for e in episodes]],
+        **{
+            metric: interval_estimates(per_state(episodes, key)[1].tolist())
+            for metric, key in _metrics(episodes)
+        },
+        "returns": [per_state(episodes, "return")[1].tolist()],
+        "episode_noise": within_state_sd(episodes, "return"),
     }
 
 
@@ -689,6 +711,12 @@ def build_parser() -> argparse.ArgumentParser:
         "--episodes", type=integer_at_least(1), default=None, help="first N states (default: the baseline's)"
     )
     parser.add_argument(
+        "--repeats",
+        type=integer_at_least(1),
+        default=1,
+        help="realisations per start state (dipenv.realisations; default 1: the stored states), >= 1",
+    )
+    parser.add_argument(
         "--model",
         choices=("final", "best"),
         default="final",
@@ -750,11 +778,17 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     except (OSError, ValueError, KeyError, TypeError) as error:
         kind = type(error).__name__
         usage_error(PROG, f"--baseline {args.baseline}: a point file cannot be read ({kind}: {error})")
-    summary = summarise_points(points)
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     if args.episodes is not None and not 1 <= args.episodes <= len(baseline_indices):
         usage_error(PROG, f"--episodes must be in [1, {len(baseline_indices)}] (the baseline's states)")
     indices = baseline_indices if args.episodes is None else baseline_indices[: args.episodes]
+    absent = [p["label"] for p in points if missing(p["episodes"], indices, 1)]
+    if absent:
+        usage_error(PROG, f"--baseline {args.baseline}: the points {', '.join(absent)} lack states {indices}")
+    # The front and the choice of the best constant use the realisations each point holds (up to K); the
+    # rows (no field, the best constant) must hold all K.
+    points = [{**p, "episodes": select(p["episodes"], indices, args.repeats)} for p in points]
+    summary = summarise_points(points)
     # One policy per training group and way of acting: its mean action and/or its sampled actions.
     sampling = {"mean": [False], "sampled": [True], "both": [False, True]}[args.actions]
     best_suffix = ", best validation" if args.model == "best" else ""
@@ -787,6 +821,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "stochastic": sampled,
                     "split": split,
                     "indices": indices,
+                    "repeats": args.repeats,
                     "path": str(args.out / "runs" / f"{label}.json"),
                     "identity": {
                         "run": str(run.resolve()),
@@ -796,6 +831,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "model_mtime": model_file.stat().st_mtime_ns,
                         "library_key": library_keys[run],  # start states regenerated: played again
                         **({"stochastic": True} if sampled else {}),
+                        **({"repeats": args.repeats} if args.repeats > 1 else {}),
                     },
                 }
             )
@@ -804,12 +840,27 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     (args.out / "command.txt").write_text(
         " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
     )
-    controllers = [load_controller(folder, pareto, split, indices, reward) for folder in args.controllers]
+    controllers = [
+        load_controller(folder, pareto, split, indices, reward, args.repeats) for folder in args.controllers
+    ]
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
     check_same_states({Path(r["run"]): r["library_key"] for r in records}, pareto, configs)
     by_label = {p["label"]: p for p in points}
     best = max(summary, key=lambda r: r["return"])  # for this reward
     best_name = f"best constant ({best['label']})"
+    short = [
+        label
+        for label in ("off", best["label"])
+        if label in by_label and missing(by_label[label]["episodes"], indices, args.repeats)
+    ]
+    if short:
+        masons = ",".join("off" if label == "off" else label.removeprefix("Mn") for label in short)
+        usage_error(
+            PROG,
+            f"--repeats {args.repeats}: the --baseline's rows {', '.join(short)} (no field, best constant) "
+            f"lack realisations; rerun its agents.open_loop command with --mason {masons} --repeats "
+            f"{args.repeats} (stored episodes are reused)",
+        )
     baselines = [("no field", by_label.get("off")), (best_name, by_label.get(best["label"]))]
     baselines += controllers
     baseline_rows = [
@@ -819,9 +870,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     policy_rows = [aggregate_policy(name, own) for name, own in played.items()]
     rows = baseline_rows + policy_rows
     table = format_table(rows)
+    realisations = f" x {args.repeats} realisations each (averaged per state)" if args.repeats > 1 else ""
     header = (
-        f"Environment {pareto['env_id']}, {len(indices)} {split} start states; eta_r and energy are time "
-        "averages over the second half of each episode (energy in eta gammadot per unit strain); intervals "
+        f"Environment {pareto['env_id']}, {len(indices)} {split} start states{realisations}; eta_r and "
+        "energy are time averages over the second half of each episode (energy in eta gammadot per unit "
+        "strain); intervals "
         "are 95% stratified-bootstrap intervals (rliable) over training seeds and states (policies) or over "
         "start states (constant fields, controllers). Returns for "
         f"the reward of the policies' env: target eta_r {reward.target_viscosity:g}, energy weight "
@@ -861,10 +914,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     curves = []
     for name, record in baselines:
         if record is not None:
-            curves += [(name, e["trace"]) for e in record["episodes"] if e["index"] == first]
+            curves += [
+                (name, e["trace"])
+                for e in record["episodes"]
+                if e["index"] == first and realisation_of(e) == 0
+            ]
     for name, own in played.items():
         curves += [
-            (f"{name} seed {own[0]['seed']}", e["trace"]) for e in own[0]["episodes"] if e["index"] == first
+            (f"{name} seed {own[0]['seed']}", e["trace"])
+            for e in own[0]["episodes"]
+            if e["index"] == first and realisation_of(e) == 0
         ]
     plot_traces(curves, args.out / "traces.png")
     plot_learning(

@@ -2,19 +2,24 @@
 
     python -m agents.open_loop --env dipenv/FieldMagnitude-v0 --out runs/open_loop
         [--mason off,20,5,2,1,0.5,0.2,0.1,0.05] [--directions y,x,z,xy] [--split test] [--episodes N]
-        [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
+        [--repeats K] [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
 
-Every point (a constant Mason number, and a direction for the vector env) runs one episode from each
-of the first ``--episodes`` start states of ``--split`` and writes ``DIR/points/<label>.json`` (the
-episodes' metrics and traces); a rerun skips the points already written for the same env, arguments
-and start-state library, so the command is resumable. Then it writes ``pareto.csv`` / ``pareto.json``
+Every point (a constant Mason number, and a direction for the vector env) runs ``--repeats`` episodes
+(realisations 0 .. K-1 of :mod:`dipenv.realisations`; default one, the stored state itself) from each of
+the first ``--episodes`` start states of ``--split`` and writes ``DIR/points/<label>.json`` (the
+episodes' metrics and traces, written after every episode); a rerun reuses the episodes already written
+for the same env, arguments and start-state library and plays only the missing ones, so the command is
+resumable and a rerun with a larger ``--repeats`` adds realisations to the stored ones. Statistics average
+a state's realisations first (:mod:`agents.repeats`); intervals are over states.
+Then it writes ``pareto.csv`` / ``pareto.json``
 (per point: mean ``eta_r`` over the second half of the episodes with its 95% interval over start
 states, field energy ``<1/Mn>``, return, and whether the point is on the Pareto front of low ``eta_r``
 and low energy), ``best_constant.json`` (the point with the highest mean return: the best constant
 policy for the reward in use, chosen on the same start states, which favours the baseline) and
-``pareto.png``. The stored points keep every interval's ``eta_r`` and field energy, so a rerun with
-another reward (``target_viscosity`` or ``energy_weight`` in ``--env-kwargs``, or a changed default)
-rescores them without simulating again.
+``pareto.png``, over every point of the folder that belongs to the same study (same env, split, states
+and library; each with the realisations it holds). The stored points keep every interval's ``eta_r``
+and field energy, so a rerun with another reward (``target_viscosity`` or ``energy_weight`` in
+``--env-kwargs``, or a changed default) rescores them without simulating again.
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.repeats import episode_key, missing, per_state, select
 from agents.rollout import constant_policy, make_env, run_episode
 from agents.statistics import interval_estimates
 from agents.tasks import run_tasks
@@ -109,7 +115,8 @@ def constant_action(unwrapped: Any, mason: float, direction: str | None) -> list
 
 
 def run_point(payload: dict[str, Any]) -> dict[str, Any]:
-    """One constant field over the start states (a task); returns and writes the point's record."""
+    """One constant field over the start states and realisations (a task); writes the point's record
+    (every episode it holds, kept from earlier runs too) and returns it with the requested episodes."""
     env = make_env(payload["env_id"], payload["env_kwargs"])
     unwrapped: Any = env.unwrapped
     action = constant_action(unwrapped, payload["mason_number"], payload["direction"])
@@ -119,27 +126,49 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     # below for the reward in use.
     settings["failure_penalty"] = settings.pop("reward")["failure_penalty"]
     identity = _identity(payload, key, settings)
-    path = Path(payload["path"])
-    if path.exists():
-        old = read_json(path)
-        if _finite(old.get("identity")) == identity:  # read_json turned "inf" back into floats
-            env.close()
-            return rescore_stored(old, unwrapped.reward_function, path)
-    episodes = []
-    for index in range(payload["episodes"]):
-        trace = run_episode(env, constant_policy(action), payload["split"], index)
-        episodes.append({**trace.summary(), "trace": trace.to_dict()})
-    env.close()
     record = {
         "identity": identity,
         "label": payload["label"],
         "mason_number": payload["mason_number"],
         "direction": payload["direction"],
         "action": action,
-        "episodes": episodes,
+        "episodes": [],
     }
-    write_json(path, record)
+    record = play_missing(
+        record, payload, env, lambda: constant_policy(action), lambda old: _finite(old.get("identity"))
+    )
+    env.close()
     return record
+
+
+def play_missing(
+    record: dict[str, Any], payload: dict[str, Any], env: Any, make_policy: Any, stored_identity: Any
+) -> dict[str, Any]:
+    """Fill ``record`` (whose ``identity`` is set) with the episodes of ``payload`` (``split``, the first
+    ``episodes`` states, ``repeats`` realisations each, default 1), reusing those of the file
+    ``payload['path']`` when ``stored_identity(stored record)`` equals the identity, playing the rest with
+    ``make_policy()`` and writing the file after each; all episodes rescored with the env's reward. Returns
+    the record with the requested episodes only (the file keeps every stored one)."""
+    path = Path(payload["path"])
+    reward = env.unwrapped.reward_function
+    indices = range(payload["episodes"])
+    repeats = int(payload.get("repeats", 1))
+    stored: list[dict[str, Any]] = []
+    if path.exists():
+        old = read_json(path)
+        if stored_identity(old) == record["identity"]:
+            if not missing(old["episodes"], indices, repeats):
+                old = rescore_stored(old, reward, path)
+                return {**old, "episodes": select(old["episodes"], indices, repeats)}
+            stored = list(old["episodes"])
+    for index, realisation in missing(stored, indices, repeats):
+        trace = run_episode(env, make_policy(), payload["split"], index, realisation=realisation)
+        stored.append({**trace.summary(), "trace": trace.to_dict()})
+        stored.sort(key=episode_key)
+        record["episodes"] = stored
+        write_json(path, rescore(record, reward))
+    record["episodes"] = stored
+    return {**record, "episodes": select(stored, indices, repeats)}
 
 
 def rescore(record: dict[str, Any], reward: Any) -> dict[str, Any]:
@@ -189,15 +218,41 @@ def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any
     )
 
 
+def stored_points(folder: Path, records: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """The other points stored in ``folder`` that belong to the same study as ``records`` (identity equal
+    but for the field), with every episode they hold: a command that runs a few points again (more
+    ``--repeats``, say) still summarises the whole folder."""
+
+    def study(identity: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in identity.items() if k not in ("mason_number", "direction")}
+
+    reference = study(_finite(records[0]["identity"]))
+    labels = {r["label"] for r in records}
+    out = []
+    for path in sorted(folder.glob("*.json")):
+        if path.stem in labels:
+            continue
+        try:
+            record = read_json(path)
+            same = study(_finite(record["identity"])) == reference
+        except (OSError, ValueError, KeyError, TypeError):
+            continue
+        if same:
+            out.append(record)
+    return out
+
+
 def summarise_points(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per point: means and 95% intervals over start states, and the Pareto flag (eta_r, energy)."""
+    """Per point: means and 95% intervals over start states (each state's realisations averaged first),
+    and the Pareto flag (eta_r, energy)."""
     rows = []
     for record in records:
         eps = record["episodes"]
-        eta_stats = interval_estimates([e["eta_second_half"] for e in eps])
+        states, eta_per_state = per_state(eps, "eta_second_half")
+        eta_stats = interval_estimates(eta_per_state.tolist())
         eta, eta_lo, eta_hi = eta_stats["mean"], eta_stats["ci_low"], eta_stats["ci_high"]
-        energy = float(np.nanmean([e["energy_second_half"] for e in eps]))
-        ret_stats = interval_estimates([e["return"] for e in eps])
+        energy = float(np.nanmean(per_state(eps, "energy_second_half")[1]))
+        ret_stats = interval_estimates(per_state(eps, "return")[1].tolist())
         ret, ret_lo, ret_hi = ret_stats["mean"], ret_stats["ci_low"], ret_stats["ci_high"]
         rows.append(
             {
@@ -212,7 +267,8 @@ def summarise_points(records: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "return": ret,
                 "return_ci_low": ret_lo,
                 "return_ci_high": ret_hi,
-                "episodes": len(eps),
+                "episodes": len(states),
+                "repeats": len(eps) // max(len(states), 1),
                 "failures": sum(bool(e["failed"]) for e in eps),
             }
         )
@@ -292,6 +348,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--split", default="test", choices=("train", "validation", "test"))
     parser.add_argument("--episodes", type=int, default=None, help="start states (default: the whole split)")
+    parser.add_argument(
+        "--repeats",
+        type=integer_at_least(1),
+        default=1,
+        help="realisations per start state (dipenv.realisations; default 1: the stored state), >= 1",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument(
@@ -358,6 +420,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                     "env_kwargs": {**env_kwargs, "progress": False},
                     "split": args.split,
                     "episodes": episodes,
+                    "repeats": args.repeats,
                     "mason_number": m,
                     "direction": d,
                     "label": label,
@@ -365,6 +428,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                 }
             )
     records = run_tasks(run_point, payloads, workers=args.workers, scheduler=args.scheduler)
+    records += [rescore(r, unwrapped.reward_function) for r in stored_points(args.out / "points", records)]
     rows = summarise_points(records)
     best = max(rows, key=lambda r: r["return"])
     write_json(
@@ -398,7 +462,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     plot_pareto(rows, args.out / "pareto.png")
     print(
         f"| point | eta_r (2nd half) | 95% CI | energy <1/Mn> | return | Pareto |  "
-        f"({episodes} {args.split} states)"
+        f"({episodes} {args.split} states x {args.repeats} realisations)"
     )
     print("|---|---|---|---|---|---|")
     for r in rows:

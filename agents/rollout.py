@@ -49,6 +49,7 @@ class EpisodeTrace:
 
     split: str
     index: int
+    realisation: int = 0
     strain: list[float] = field(default_factory=list)
     action: list[list[float]] = field(default_factory=list)
     mason_number: list[float] = field(default_factory=list)
@@ -71,6 +72,7 @@ class EpisodeTrace:
         out = {
             "split": self.split,
             "index": self.index,
+            "realisation": self.realisation,
             "steps": n,
             "failed": self.failed,
             "eta_second_half": float(np.mean(self.eta_r[half])) if ok else math.nan,
@@ -91,11 +93,20 @@ class EpisodeTrace:
         return out
 
 
-def run_episode(env: gym.Env, policy: Policy, split: str, index: int, seed: int = 0) -> EpisodeTrace:
+def run_episode(
+    env: gym.Env, policy: Policy, split: str, index: int, seed: int = 0, realisation: int = 0
+) -> EpisodeTrace:
     """Run ``policy`` from start state ``index`` of ``split`` until the episode ends (a policy with a
-    ``reset()`` method, such as a feedback controller of :mod:`agents.controllers`, is reset first)."""
-    obs, info = env.reset(seed=seed, options={"split": split, "index": index})
-    trace = EpisodeTrace(split=split, index=index, library_key=str(info.get("library_key", "")))
+    ``reset()`` method, such as a feedback controller of :mod:`agents.controllers`, is reset first).
+    ``realisation`` > 0 starts from that state moved by 1e-9 a (:mod:`dipenv.realisations`): an
+    independent repeat of the same episode."""
+    options: dict[str, Any] = {"split": split, "index": index}
+    if realisation:
+        options["realisation"] = realisation
+    obs, info = env.reset(seed=seed, options=options)
+    trace = EpisodeTrace(
+        split=split, index=index, realisation=realisation, library_key=str(info.get("library_key", ""))
+    )
     trace.eta_cap = float(info.get("eta_cap", math.nan))
     reset = getattr(policy, "reset", None)
     if callable(reset):

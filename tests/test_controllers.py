@@ -144,15 +144,18 @@ def test_command_tunes_on_validation_and_plays_the_best_on_test(tmp_path: Path) 
 
 
 def count_episodes(monkeypatch: pytest.MonkeyPatch) -> list[str]:
-    """Record the split of every episode that ``agents.controllers`` simulates from now on."""
+    """Record the split of every episode that ``agents.controllers`` simulates from now on (through
+    ``agents.open_loop.play_missing``)."""
+    from agents import open_loop
+
     calls: list[str] = []
-    real = controllers.run_episode
+    real = open_loop.run_episode
 
-    def counted(env: gym.Env, policy: object, split: str, index: int) -> object:
+    def counted(env: gym.Env, policy: object, split: str, index: int, realisation: int = 0) -> object:
         calls.append(split)
-        return real(env, policy, split, index)
+        return real(env, policy, split, index, realisation=realisation)  # type: ignore[arg-type]
 
-    monkeypatch.setattr(controllers, "run_episode", counted)
+    monkeypatch.setattr(open_loop, "run_episode", counted)
     return calls
 
 

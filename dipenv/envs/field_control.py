@@ -37,6 +37,7 @@ from dipenv.observations import (
     observation_features,
     observation_frame,
 )
+from dipenv.realisations import perturbed_state
 from dipenv.rewards import (
     DEFAULT_ENERGY_WEIGHT,
     DEFAULT_FAILURE_PENALTY,
@@ -280,15 +281,22 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         """Start an episode from a pre-sheared state (field off).
 
         ``options``: ``split`` (train/validation/test), ``index`` (state within the split; default drawn
-        with ``self.np_random``, or the next in turn with ``start_state="cycle"``), ``volume_fraction``.
+        with ``self.np_random``, or the next in turn with ``start_state="cycle"``), ``volume_fraction``,
+        ``realisation`` (integer >= 0, default 0: the state moved by 1e-9 a with a displacement fixed by
+        ``(split, index, realisation)``, for independent repeats of one episode; 0 is the stored state
+        itself; :mod:`dipenv.realisations`).
         """
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - {"split", "index", "volume_fraction"}
+        unknown = set(options) - {"split", "index", "volume_fraction", "realisation"}
         if unknown:
             raise ValueError(
-                f"unknown reset options {sorted(unknown)}; allowed: split, index, volume_fraction"
+                f"unknown reset options {sorted(unknown)}; allowed: split, index, volume_fraction, "
+                "realisation"
             )
+        realisation = options.get("realisation", 0)
+        if isinstance(realisation, bool) or not isinstance(realisation, int | np.integer) or realisation < 0:
+            raise ValueError(f"options['realisation'] must be an integer >= 0, got {realisation!r}")
         split = options.get("split", self.split)
         if split not in SPLITS:
             raise ValueError(f"options['split'] must be one of {', '.join(SPLITS)}, got {split!r}")
@@ -306,7 +314,11 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.reward_function = self._reward_for(phi)
         start = self._start_state(phi, split, int(index))
         simulation = self._episode_simulation(phi, start)
-        simulation.restore(start.state)
+        if realisation:
+            box = simulation.config.box_length
+            simulation.restore(perturbed_state(start.state, box, split, int(index), int(realisation)))
+        else:
+            simulation.restore(start.state)
         simulation.set_field(math.inf, _Y)
         self._steps = 0
         self._episode_start = simulation.state.time
@@ -320,6 +332,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         info = {
             "split": split,
             "index": int(index),
+            "realisation": int(realisation),
             "packing_seed": start.seed,
             "volume_fraction": phi,
             "library_key": self.library(phi).key,

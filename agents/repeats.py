@@ -1,0 +1,88 @@
+"""Several realisations of each held-out episode, and the per-state averages over them.
+
+An evaluation plays each start state (and, in the thickening-control environments, its rate schedule)
+``repeats`` times, realisation ``k = 0 .. repeats-1`` of :mod:`dipenv.realisations` (``k = 0`` is the stored
+state itself, so one repeat is the plain evaluation). The realisations of one state are not independent
+samples of a controller's skill across states: they measure the chaotic noise of one episode. Every
+statistic over states therefore first averages a state's realisations (:func:`per_state`), and the
+intervals stay intervals over states (or over training seeds and states).
+
+Stored episodes carry ``realisation`` (missing in files written before it existed: 0).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+
+def realisation_of(episode: dict[str, Any]) -> int:
+    """The realisation of a stored episode (0 where the record predates realisations)."""
+    return int(episode.get("realisation", 0))
+
+
+def episode_key(episode: dict[str, Any]) -> tuple[int, int]:
+    """``(start-state index, realisation)`` of a stored episode."""
+    return int(episode["index"]), realisation_of(episode)
+
+
+def wanted_keys(indices: Iterable[int], repeats: int) -> list[tuple[int, int]]:
+    """Every ``(index, realisation)`` an evaluation of ``indices`` with ``repeats`` realisations needs,
+    state by state."""
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    return [(int(i), k) for i in indices for k in range(repeats)]
+
+
+def select(episodes: Sequence[dict[str, Any]], indices: Iterable[int], repeats: int) -> list[dict[str, Any]]:
+    """The episodes of ``indices`` and realisations ``0 .. repeats-1``, sorted by state then realisation
+    (a stored record may hold more)."""
+    keys = set(wanted_keys(indices, repeats))
+    return sorted((e for e in episodes if episode_key(e) in keys), key=episode_key)
+
+
+def missing(
+    episodes: Sequence[dict[str, Any]], indices: Iterable[int], repeats: int
+) -> list[tuple[int, int]]:
+    """The ``(index, realisation)`` pairs of :func:`wanted_keys` that ``episodes`` lacks."""
+    have = {episode_key(e) for e in episodes}
+    return [key for key in wanted_keys(indices, repeats) if key not in have]
+
+
+def per_state(episodes: Sequence[dict[str, Any]], key: str) -> tuple[list[int], np.ndarray]:
+    """The states (sorted) and, per state, the mean of metric ``key`` over its realisations (NaN where
+    every realisation of that state is NaN, e.g. failed)."""
+    groups: dict[int, list[float]] = {}
+    for episode in episodes:
+        groups.setdefault(int(episode["index"]), []).append(float(episode[key]))
+    states = sorted(groups)
+    values = [groups[s] for s in states]
+    means = np.array([np.nanmean(v) if np.isfinite(v).any() else math.nan for v in values], dtype=float)
+    return states, means
+
+
+def realisations_per_state(episodes: Sequence[dict[str, Any]]) -> int:
+    """How many realisations every state has (the smallest count over the states; 0 for no episodes)."""
+    counts: dict[int, int] = {}
+    for episode in episodes:
+        counts[int(episode["index"])] = counts.get(int(episode["index"]), 0) + 1
+    return min(counts.values(), default=0)
+
+
+def within_state_sd(episodes: Sequence[dict[str, Any]], key: str) -> float:
+    """The pooled standard deviation of metric ``key`` between realisations of the same state (the noise
+    of one episode); NaN with fewer than two realisations per state."""
+    groups: dict[int, list[float]] = {}
+    for episode in episodes:
+        value = float(episode[key])
+        if math.isfinite(value):
+            groups.setdefault(int(episode["index"]), []).append(value)
+    squares, dof = 0.0, 0
+    for values in groups.values():
+        if len(values) > 1:
+            squares += float(np.sum((np.asarray(values) - np.mean(values)) ** 2))
+            dof += len(values) - 1
+    return math.sqrt(squares / dof) if dof else math.nan
