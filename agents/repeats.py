@@ -7,7 +7,9 @@ samples of a controller's skill across states: they measure the chaotic noise of
 statistic over states therefore first averages a state's realisations (:func:`per_state`), and the
 intervals stay intervals over states (or over training seeds and states).
 
-Stored episodes carry ``realisation`` (missing in files written before it existed: 0).
+Stored episodes carry ``realisation`` (missing in files written before it existed: 0). The per-state
+statistics group by ``index``; an episode without one (a hand-made or pre-index record) counts as a state
+of its own, numbered by its position in the list.
 """
 
 from __future__ import annotations
@@ -52,12 +54,17 @@ def missing(
     return [key for key in wanted_keys(indices, repeats) if key not in have]
 
 
+def _state_of(episode: dict[str, Any], position: int) -> int:
+    """The start-state index of an episode for grouping; its list position where it has none."""
+    return int(episode.get("index", position))
+
+
 def per_state(episodes: Sequence[dict[str, Any]], key: str) -> tuple[list[int], np.ndarray]:
     """The states (sorted) and, per state, the mean of metric ``key`` over its realisations (NaN where
     every realisation of that state is NaN, e.g. failed)."""
     groups: dict[int, list[float]] = {}
-    for episode in episodes:
-        groups.setdefault(int(episode["index"]), []).append(float(episode[key]))
+    for position, episode in enumerate(episodes):
+        groups.setdefault(_state_of(episode, position), []).append(float(episode[key]))
     states = sorted(groups)
     values = [groups[s] for s in states]
     means = np.array([np.nanmean(v) if np.isfinite(v).any() else math.nan for v in values], dtype=float)
@@ -67,8 +74,9 @@ def per_state(episodes: Sequence[dict[str, Any]], key: str) -> tuple[list[int], 
 def realisations_per_state(episodes: Sequence[dict[str, Any]]) -> int:
     """How many realisations every state has (the smallest count over the states; 0 for no episodes)."""
     counts: dict[int, int] = {}
-    for episode in episodes:
-        counts[int(episode["index"])] = counts.get(int(episode["index"]), 0) + 1
+    for position, episode in enumerate(episodes):
+        state = _state_of(episode, position)
+        counts[state] = counts.get(state, 0) + 1
     return min(counts.values(), default=0)
 
 
@@ -76,10 +84,10 @@ def within_state_sd(episodes: Sequence[dict[str, Any]], key: str) -> float:
     """The pooled standard deviation of metric ``key`` between realisations of the same state (the noise
     of one episode); NaN with fewer than two realisations per state."""
     groups: dict[int, list[float]] = {}
-    for episode in episodes:
+    for position, episode in enumerate(episodes):
         value = float(episode[key])
         if math.isfinite(value):
-            groups.setdefault(int(episode["index"]), []).append(value)
+            groups.setdefault(_state_of(episode, position), []).append(value)
     squares, dof = 0.0, 0
     for values in groups.values():
         if len(values) > 1:

@@ -77,6 +77,9 @@ def test_repeat_statistics_average_realisations_per_state() -> None:
     assert math.isnan(within_state_sd(episodes[::2], "return"))
     assert [e["return"] for e in select(episodes, [1, 0], 1)] == [1.0, 10.0]
     assert missing(episodes, [0, 1, 2], 3) == [(0, 2), (1, 2), (2, 0), (2, 1), (2, 2)]
+    # records without an index (hand-made, or written before indices): each is a state of its own
+    states, means = per_state([{"return": 5.0}, {"return": 7.0}], "return")
+    assert states == [0, 1] and means.tolist() == [5.0, 7.0]
 
 
 def test_repeats_add_realisations_to_stored_points_and_evaluate_averages_them(
