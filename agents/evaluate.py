@@ -36,9 +36,10 @@ et al. 2021; :mod:`agents.statistics`), of the time-averaged ``eta_r`` over the 
 episode, the field energy ``<1/Mn>`` over that half and the return; for the baselines (no field, the best
 constant field for the reward, and any ``--controllers``) the same over start states. Plots:
 ``traces.png`` (field and ``eta_r`` against strain on the first state) and ``pareto.png`` (the constant
-fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each policy against the
-constant-field front, its return against the best constant field's (paired per seed, and rliable's
-probability of improvement over the states) and its action variation (:mod:`agents.comparison`).
+fields' front with the policies on it). ``verdict.md`` (also in ``results.json``): each controller and
+policy against the constant-field front, its return against the best constant field's (paired per seed;
+paired per state, the test that resolves a controller; and rliable's probability of improvement over the
+states) and its action variation (:mod:`agents.comparison`).
 ``learning.png``: each run's
 return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
 and in its training episodes with sampled actions (TensorBoard logs, or the
@@ -394,6 +395,9 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
             for metric, key in _metrics(episodes)
         },
         "returns": [per_state(episodes, "return")[1].tolist()],
+        "per_seed": {
+            metric: [float(np.nanmean(per_state(episodes, key)[1]))] for metric, key in _metrics(episodes)
+        },
         "episode_noise": within_state_sd(episodes, "return"),
     }
 
@@ -462,11 +466,33 @@ def verdicts(
                 "seeds_below_front": sum(g < 0 for g in gaps),
                 "seeds": len(gaps),
                 **return_gap(row["per_seed"]["return"], best["return"]["mean"]),
+                **state_gap(row, best),
                 **_improvement(row, best),
                 **action_variation([e for r in runs for e in r["episodes"]]),
             }
         )
     return out
+
+
+def state_gap(row: dict[str, Any], best: dict[str, Any]) -> dict[str, Any]:
+    """The return minus the best constant field's, paired state by state: per start state the row's
+    return (averaged over its seeds and realisations) minus the constant's (averaged over its
+    realisations); the mean over the states with its 95% bootstrap interval over them, and the number of
+    states where the row is higher. This is the test that resolves a controller (one "seed") against the
+    constant; NaN where an episode failed."""
+    x, y = np.asarray(row["returns"], dtype=float), np.asarray(best["returns"], dtype=float)
+    if x.ndim != 2 or x.shape[1] != y.shape[1] or not (np.isfinite(x).all() and np.isfinite(y).all()):
+        nan = math.nan
+        return {"state_gap": nan, "state_gap_low": nan, "state_gap_high": nan, "states_above": 0, "states": 0}
+    gaps = x.mean(axis=0) - y.mean(axis=0)
+    stats = interval_estimates(gaps.tolist())
+    return {
+        "state_gap": stats["mean"],
+        "state_gap_low": stats["ci_low"],
+        "state_gap_high": stats["ci_high"],
+        "states_above": int(np.sum(gaps > 0)),
+        "states": int(gaps.size),
+    }
 
 
 def _improvement(row: dict[str, Any], best: dict[str, Any]) -> dict[str, float]:
@@ -484,18 +510,21 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
         "| policy | field energy | eta_r | front eta_r at that energy | eta_r - front "
         "| front energy for that eta_r | seeds below the front | action std (2nd half) | field off "
         "| Mn used (10-90%) | verdict | return - best constant [95% CI] | seeds above it | return verdict "
+        "| return - best constant, paired per state [95% CI] | states above it "
         "| P(return > best constant) [95% CI] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for v in items:
         gap = format_interval(v["return_gap"], v["return_gap_low"], v["return_gap_high"], "+.2f")
         improvement = format_interval(v["improvement"], v["improvement_low"], v["improvement_high"], ".2f")
+        paired = format_interval(v["state_gap"], v["state_gap_low"], v["state_gap_high"], "+.2f")
+        states = f"{v['states_above']}/{v.get('states', 0)}"
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
             f"{v['seeds_below_front']}/{v['seeds']} | {v['action_std']:.3f} | {100 * v['off_share']:.0f}% | "
             f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} | {gap} | "
-            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {improvement} |"
+            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {paired} | {states} | {improvement} |"
         )
     return "\n".join(lines)
 
@@ -882,11 +911,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     (args.out / "table.md").write_text(header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)
-    items = verdicts(policy_rows, front_points(summary), list(played.values()), best_row)
+    controller_rows = baseline_rows[len(baseline_rows) - len(controllers) :]
+    items = verdicts(
+        controller_rows + policy_rows,
+        front_points(summary),
+        [[record] for _, record in controllers] + list(played.values()),
+        best_row,
+    )
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
         "agents.comparison); action statistics over the second half of the episodes; the return against "
-        f"the {best_row['name']}'s on the same states, paired per seed.\n\n" + format_verdicts(items)
+        f"the {best_row['name']}'s on the same states, paired per seed (a controller is one seed) and "
+        "paired per state (each state's seeds and realisations averaged).\n\n" + format_verdicts(items)
     )
     (args.out / "verdict.md").write_text(verdict + "\n")
     write_json(

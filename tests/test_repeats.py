@@ -141,7 +141,26 @@ def test_repeats_add_realisations_to_stored_points_and_evaluate_averages_them(
     assert ff_row["samples"] == "2 start states x 2 realisations"
     assert math.isfinite(ff_row["episode_noise"])
     assert "2 realisations each" in (out / "table.md").read_text()
+    # the controller is a verdict row, paired state by state against the best constant field
+    verdict = next(v for v in result["verdicts"] if v["name"] == ff_row["name"])
+    best_row = next(r for r in result["rows"] if r["name"].startswith("best constant"))
+    gaps = np.asarray(per_state_means) - np.asarray(best_row["returns"][0])
+    assert verdict["state_gap"] == pytest.approx(gaps.mean(), rel=1e-12, abs=1e-12)
+    assert (verdict["states"], verdict["states_above"]) == (2, int(np.sum(gaps > 0)))
+    assert "paired per state" in (out / "verdict.md").read_text()
     with pytest.raises(SystemExit) as exit_info:
         evaluate.main([*argv[:-1], "3"])
     assert exit_info.value.code == 2
     assert "--repeats 3" in capsys.readouterr().err
+
+
+def test_state_gap_pairs_each_state_after_averaging_seeds() -> None:
+    """Two seeds x three states against one constant (numbers by hand): per-state means 2, 3, 4 against
+    0, 5, 1 give gaps 2, -2, 3 (mean 1, two states above); a failed episode (NaN) gives NaN."""
+    row = {"returns": [[1.0, 2.0, 3.0], [3.0, 4.0, 5.0]]}
+    best = {"returns": [[0.0, 5.0, 1.0]]}
+    gap = evaluate.state_gap(row, best)
+    assert gap["state_gap"] == pytest.approx(1.0, rel=1e-15)
+    assert (gap["states"], gap["states_above"]) == (3, 2)
+    assert gap["state_gap_low"] < 1.0 < gap["state_gap_high"]
+    assert math.isnan(evaluate.state_gap({"returns": [[1.0, math.nan, 3.0]]}, best)["state_gap"])
