@@ -386,18 +386,14 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
     states = len({e["index"] for e in episodes})
     repeats = len(episodes) // max(states, 1)
     samples = f"{states} start states" + (f" x {repeats} realisations" if repeats > 1 else "")
+    means = {metric: per_state(episodes, key)[1] for metric, key in _metrics(episodes)}
     return {
         "name": name,
         "samples": samples,
         "failures": sum(bool(e["failed"]) for e in episodes),
-        **{
-            metric: interval_estimates(per_state(episodes, key)[1].tolist())
-            for metric, key in _metrics(episodes)
-        },
-        "returns": [per_state(episodes, "return")[1].tolist()],
-        "per_seed": {
-            metric: [float(np.nanmean(per_state(episodes, key)[1]))] for metric, key in _metrics(episodes)
-        },
+        **{metric: interval_estimates(values.tolist()) for metric, values in means.items()},
+        "returns": [means["return"].tolist()],
+        "per_seed": {metric: [float(np.nanmean(values))] for metric, values in means.items()},
         "episode_noise": within_state_sd(episodes, "return"),
     }
 
@@ -474,16 +470,26 @@ def verdicts(
     return out
 
 
+def _paired_returns(row: dict[str, Any], best: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
+    """The ``(seeds, states)`` returns of ``row`` and of the best constant, or None where they cannot be
+    paired state by state (other states, or a failed episode's NaN)."""
+    x, y = np.asarray(row["returns"], dtype=float), np.asarray(best["returns"], dtype=float)
+    if x.ndim != 2 or x.shape[1] != y.shape[1] or not (np.isfinite(x).all() and np.isfinite(y).all()):
+        return None
+    return x, y
+
+
 def state_gap(row: dict[str, Any], best: dict[str, Any]) -> dict[str, Any]:
     """The return minus the best constant field's, paired state by state: per start state the row's
     return (averaged over its seeds and realisations) minus the constant's (averaged over its
     realisations); the mean over the states with its 95% bootstrap interval over them, and the number of
     states where the row is higher. This is the test that resolves a controller (one "seed") against the
     constant; NaN where an episode failed."""
-    x, y = np.asarray(row["returns"], dtype=float), np.asarray(best["returns"], dtype=float)
-    if x.ndim != 2 or x.shape[1] != y.shape[1] or not (np.isfinite(x).all() and np.isfinite(y).all()):
+    paired = _paired_returns(row, best)
+    if paired is None:
         nan = math.nan
         return {"state_gap": nan, "state_gap_low": nan, "state_gap_high": nan, "states_above": 0, "states": 0}
+    x, y = paired
     gaps = x.mean(axis=0) - y.mean(axis=0)
     stats = interval_estimates(gaps.tolist())
     return {
@@ -498,10 +504,10 @@ def state_gap(row: dict[str, Any], best: dict[str, Any]) -> dict[str, Any]:
 def _improvement(row: dict[str, Any], best: dict[str, Any]) -> dict[str, float]:
     """rliable's ``P(policy return > best constant's)`` with its bootstrap interval, state by state (the
     policy's seeds against the constant's one run per state); NaN when the episodes failed."""
-    x, y = np.asarray(row["returns"], dtype=float), np.asarray(best["returns"], dtype=float)
-    if x.ndim != 2 or x.shape[1] != y.shape[1] or not (np.isfinite(x).all() and np.isfinite(y).all()):
+    paired = _paired_returns(row, best)
+    if paired is None:
         return {"improvement": math.nan, "improvement_low": math.nan, "improvement_high": math.nan}
-    p = probability_of_improvement(x, y)
+    p = probability_of_improvement(*paired)
     return {"improvement": p["probability"], "improvement_low": p["ci_low"], "improvement_high": p["ci_high"]}
 
 
@@ -518,7 +524,7 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
         gap = format_interval(v["return_gap"], v["return_gap_low"], v["return_gap_high"], "+.2f")
         improvement = format_interval(v["improvement"], v["improvement_low"], v["improvement_high"], ".2f")
         paired = format_interval(v["state_gap"], v["state_gap_low"], v["state_gap_high"], "+.2f")
-        states = f"{v['states_above']}/{v.get('states', 0)}"
+        states = f"{v['states_above']}/{v['states']}"
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
@@ -945,7 +951,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     plot_pareto(summary, args.out / "pareto.png", markers)
     if all("excess_viscosity" in r for r in rows):
         constants = [aggregate_baseline(p["label"], p, indices) for p in points]
-        plot_thickening_front(constants, rows[len(baseline_rows) - len(controllers) :], args.out)
+        plot_thickening_front(constants, controller_rows + policy_rows, args.out)
     first = indices[0]
     curves = []
     for name, record in baselines:

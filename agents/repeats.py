@@ -54,40 +54,29 @@ def missing(
     return [key for key in wanted_keys(indices, repeats) if key not in have]
 
 
-def _state_of(episode: dict[str, Any], position: int) -> int:
-    """The start-state index of an episode for grouping; its list position where it has none."""
-    return int(episode.get("index", position))
+def _by_state(episodes: Sequence[dict[str, Any]], key: str) -> dict[int, list[float]]:
+    """Metric ``key`` of each episode, grouped by start state (``index``; an episode without one is a
+    state of its own, numbered by its position in the list)."""
+    groups: dict[int, list[float]] = {}
+    for position, episode in enumerate(episodes):
+        groups.setdefault(int(episode.get("index", position)), []).append(float(episode[key]))
+    return groups
 
 
 def per_state(episodes: Sequence[dict[str, Any]], key: str) -> tuple[list[int], np.ndarray]:
     """The states (sorted) and, per state, the mean of metric ``key`` over its realisations (NaN where
     every realisation of that state is NaN, e.g. failed)."""
-    groups: dict[int, list[float]] = {}
-    for position, episode in enumerate(episodes):
-        groups.setdefault(_state_of(episode, position), []).append(float(episode[key]))
+    groups = _by_state(episodes, key)
     states = sorted(groups)
     values = [groups[s] for s in states]
     means = np.array([np.nanmean(v) if np.isfinite(v).any() else math.nan for v in values], dtype=float)
     return states, means
 
 
-def realisations_per_state(episodes: Sequence[dict[str, Any]]) -> int:
-    """How many realisations every state has (the smallest count over the states; 0 for no episodes)."""
-    counts: dict[int, int] = {}
-    for position, episode in enumerate(episodes):
-        state = _state_of(episode, position)
-        counts[state] = counts.get(state, 0) + 1
-    return min(counts.values(), default=0)
-
-
 def within_state_sd(episodes: Sequence[dict[str, Any]], key: str) -> float:
     """The pooled standard deviation of metric ``key`` between realisations of the same state (the noise
-    of one episode); NaN with fewer than two realisations per state."""
-    groups: dict[int, list[float]] = {}
-    for position, episode in enumerate(episodes):
-        value = float(episode[key])
-        if math.isfinite(value):
-            groups.setdefault(_state_of(episode, position), []).append(value)
+    of one episode, over the finite values); NaN with fewer than two realisations per state."""
+    groups = {s: [x for x in v if math.isfinite(x)] for s, v in _by_state(episodes, key).items()}
     squares, dof = 0.0, 0
     for values in groups.values():
         if len(values) > 1:
