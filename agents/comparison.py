@@ -21,6 +21,18 @@ The verdict uses the policy's 95% bootstrap interval over training seeds (:mod:`
 action (in the action box, [-1, 1]), the share of intervals with the field off, and the 10th-90th
 percentile range of the Mason numbers it used.
 
+The verdict above counts the policy's noise and not the front's: the constant points are episode averages
+over the same start states and carry a noise of their own (about ±0.3 in ``eta_r`` at 16 states).
+``paired_front_gap`` counts both and drops what they share: per start state ``s`` the front is rebuilt from
+the front points' own ``eta_r`` on that state (the same Pareto members, at their energies), and the policy's
+``eta_r`` on that state (averaged over seeds and realisations) is compared with it at the policy's mean
+energy. The mean gap over the states and its 95% bootstrap interval over them give the paired verdict:
+"below the front, paired per state" if the interval lies below 0. The mean gap equals ``eta_minus_front``
+when the front points are the state averages (the interpolation is linear in the ``eta_r`` values). The
+energy is the policy's mean, not its energy on each state: a constant field is one choice for every state,
+and per-state energies would credit the policy with the front's convexity (a mixture of constants that
+no single constant can give). Between front points it inherits the straight-segment caveat above.
+
 The return (the reward the policy was trained for) is compared with the best constant field's on the
 same start states: per training seed, the policy's mean return minus the constant's mean return over
 those states (a paired comparison: the states' spread, common to both, drops out), then the mean and its
@@ -93,6 +105,60 @@ def position(
         "eta_minus_front": eta - reference,
         "front_energy": front_energy(front, eta),
         "verdict": verdict,
+    }
+
+
+def paired_front_gap(
+    front_energies: Sequence[float],
+    front_states: Sequence[Sequence[float]],
+    eta_states: Sequence[float],
+    energy: float,
+) -> dict[str, Any]:
+    """``eta_r`` minus the front, paired per start state (see the module docstring).
+
+    ``front_energies`` (``m``, increasing) are the front points' energies, ``front_states`` their
+    ``(m, n)`` per-state ``eta_r``; ``eta_states`` (``n``) the policy's per-state ``eta_r`` and
+    ``energy`` its mean energy. NaN (and verdict "not paired") where the shapes differ or a value is not
+    finite (a state missing from a point, a failed episode)."""
+    energies = np.asarray(front_energies, dtype=float)
+    front = np.asarray(front_states, dtype=float)
+    eta = np.asarray(eta_states, dtype=float)
+    if energies.ndim != 1 or np.any(np.diff(energies) <= 0):
+        raise ValueError(f"front_energies must increase strictly, got {energies.tolist()}")
+    pairable = (
+        front.shape == (energies.size, eta.size)
+        and eta.size > 0
+        and math.isfinite(energy)
+        and np.isfinite(front).all()
+        and np.isfinite(eta).all()
+    )
+    if not pairable:
+        nan = math.nan
+        keys = ("front_gap", "front_gap_low", "front_gap_high")
+        return {
+            **dict.fromkeys(keys, nan),
+            "states_below_front": 0,
+            "front_states": 0,
+            "paired_verdict": "not paired",
+        }
+    reference = np.array([np.interp(energy, energies, front[:, s]) for s in range(eta.size)])
+    gaps = eta - reference
+    stats = interval_estimates(gaps.tolist())
+    mean, low, high = stats["mean"], stats["ci_low"], stats["ci_high"]
+    verdict = {
+        -1: "below the front, paired per state",
+        1: "above the front, paired per state",
+        0: "on the front, paired per state (within the 95% interval)",
+    }[side(mean, low, high, 0.0)]
+    if math.isnan(low):
+        verdict += "; one state, no interval"
+    return {
+        "front_gap": mean,
+        "front_gap_low": low,
+        "front_gap_high": high,
+        "states_below_front": int(np.sum(gaps < 0)),
+        "front_states": int(gaps.size),
+        "paired_verdict": verdict,
     }
 
 

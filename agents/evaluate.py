@@ -58,7 +58,14 @@ from typing import Any
 import numpy as np
 import yaml
 
-from agents.comparison import action_variation, front_eta, front_points, position, return_gap
+from agents.comparison import (
+    action_variation,
+    front_eta,
+    front_points,
+    paired_front_gap,
+    position,
+    return_gap,
+)
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
 from agents.rollout import make_env, run_episode
@@ -360,6 +367,12 @@ def _metrics(episodes: list[dict[str, Any]]) -> tuple[tuple[str, str], ...]:
     return base
 
 
+def _state_means(scores: np.ndarray) -> list[float]:
+    """Per start state, the mean over training seeds of a ``(seeds, states)`` matrix from :func:`_scores`
+    (empty where :func:`_scores` fell back to per-seed averages: the states cannot be paired)."""
+    return scores.mean(axis=0).tolist() if scores.ndim == 2 else []
+
+
 def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]:
     """Mean and IQM with 95% stratified-bootstrap intervals over training seeds (runs) and start states
     (tasks) (:mod:`agents.statistics`); ``per_seed`` holds each seed's average over the states."""
@@ -375,6 +388,7 @@ def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]
         **{metric: interval_estimates(_scores(records, key)) for metric, key in metrics},
         "per_seed": per_seed,
         "returns": _scores(records, "return").tolist(),
+        "eta_states": _state_means(_scores(records, "eta_second_half")),
         "episode_noise": within_state_sd([e for r in records for e in r["episodes"]], "return"),
     }
 
@@ -393,6 +407,7 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
         "failures": sum(bool(e["failed"]) for e in episodes),
         **{metric: interval_estimates(values.tolist()) for metric, values in means.items()},
         "returns": [means["return"].tolist()],
+        "eta_states": means["eta"].tolist(),
         "per_seed": {metric: [float(np.nanmean(values))] for metric, values in means.items()},
         "episode_noise": within_state_sd(episodes, "return"),
     }
@@ -440,10 +455,13 @@ def verdicts(
     front: list[tuple[float, float]],
     records: list[list[dict[str, Any]]],
     best: dict[str, Any],
+    front_states: tuple[list[float], list[list[float]]],
 ) -> list[dict[str, Any]]:
-    """Per policy row (with its runs' records): position against the front, per-seed gaps, return
-    against the best constant field's row ``best`` on the same states (the per-seed gap, and rliable's
-    probability of improvement over the states), variation."""
+    """Per policy row (with its runs' records): position against the front, per-seed gaps, the gap to the
+    front paired per state (``front_states``: the front points' energies and per-state ``eta_r``,
+    :func:`agents.comparison.paired_front_gap`), return against the best constant field's row
+    ``best`` on the same states (the per-seed gap, and rliable's probability of improvement over the
+    states), variation."""
     out = []
     for row, runs in zip(rows, records, strict=True):
         eta, energy = row["eta"], row["energy"]
@@ -461,6 +479,7 @@ def verdicts(
                 **where,
                 "seeds_below_front": sum(g < 0 for g in gaps),
                 "seeds": len(gaps),
+                **paired_front_gap(*front_states, row["eta_states"], energy["mean"]),
                 **return_gap(row["per_seed"]["return"], best["return"]["mean"]),
                 **state_gap(row, best),
                 **_improvement(row, best),
@@ -517,20 +536,24 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
         "| front energy for that eta_r | seeds below the front | action std (2nd half) | field off "
         "| Mn used (10-90%) | verdict | return - best constant [95% CI] | seeds above it | return verdict "
         "| return - best constant, paired per state [95% CI] | states above it "
-        "| P(return > best constant) [95% CI] |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "| P(return > best constant) [95% CI] | eta_r - front, paired per state [95% CI] "
+        "| states below the front | verdict, paired per state |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for v in items:
         gap = format_interval(v["return_gap"], v["return_gap_low"], v["return_gap_high"], "+.2f")
         improvement = format_interval(v["improvement"], v["improvement_low"], v["improvement_high"], ".2f")
         paired = format_interval(v["state_gap"], v["state_gap_low"], v["state_gap_high"], "+.2f")
         states = f"{v['states_above']}/{v['states']}"
+        front_gap = format_interval(v["front_gap"], v["front_gap_low"], v["front_gap_high"], "+.3f")
+        below = f"{v['states_below_front']}/{v['front_states']}"
         lines.append(
             f"| {v['name']} | {v['energy']:.3f} | {v['eta']:.3f} | {v['front_eta']:.3f} | "
             f"{v['eta_minus_front']:+.3f} | {v['front_energy']:.3f} | "
             f"{v['seeds_below_front']}/{v['seeds']} | {v['action_std']:.3f} | {100 * v['off_share']:.0f}% | "
             f"{v['mason_p10']:.2g}-{v['mason_p90']:.2g} | {v['verdict']} | {gap} | "
-            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {paired} | {states} | {improvement} |"
+            f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {paired} | {states} | "
+            f"{improvement} | {front_gap} | {below} | {v['paired_verdict']} |"
         )
     return "\n".join(lines)
 
@@ -918,11 +941,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     (args.out / "table.md").write_text(header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)
     controller_rows = baseline_rows[len(baseline_rows) - len(controllers) :]
+    constants = {p["label"]: aggregate_baseline(p["label"], p, indices) for p in points}
+    members = sorted((r for r in summary if r["pareto"]), key=lambda r: float(r["energy"]))
+    front_states = (
+        [float(r["energy"]) for r in members],
+        [constants[r["label"]]["eta_states"] for r in members],
+    )
     items = verdicts(
         controller_rows + policy_rows,
         front_points(summary),
         [[record] for _, record in controllers] + list(played.values()),
         best_row,
+        front_states,
     )
     verdict = (
         "Against the constant-field front (Pareto points joined linearly, held flat beyond the last; "
@@ -950,8 +980,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 p[k] = p["eta"]
     plot_pareto(summary, args.out / "pareto.png", markers)
     if all("excess_viscosity" in r for r in rows):
-        constants = [aggregate_baseline(p["label"], p, indices) for p in points]
-        plot_thickening_front(constants, controller_rows + policy_rows, args.out)
+        plot_thickening_front(list(constants.values()), controller_rows + policy_rows, args.out)
     first = indices[0]
     curves = []
     for name, record in baselines:

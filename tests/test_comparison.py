@@ -11,6 +11,7 @@ from agents.comparison import (
     front_energy,
     front_eta,
     front_points,
+    paired_front_gap,
     position,
     return_gap,
 )
@@ -48,6 +49,45 @@ def test_position_uses_the_interval() -> None:
     assert position(FRONT, 1.0, 7.0, 6.5, 7.5)["verdict"].startswith("above")
     one_seed = position(FRONT, 1.0, 5.9, math.nan, math.nan)["verdict"]
     assert one_seed.startswith("below") and one_seed.endswith("no interval")
+
+
+def test_paired_front_gap_by_hand() -> None:
+    """Two front points (energies 0 and 1) on three states, numbers by hand: at energy 0.5 the front is
+    the midpoint of each state's own values (8, 9.5, 6.5); gaps -1, -0.5, +1. The mean gap is the
+    unpaired one: the policy's mean 47/6 against the front of the state means (10, 6) at 0.5, 8."""
+    energies, front = [0.0, 1.0], [[10.0, 12.0, 8.0], [6.0, 7.0, 5.0]]
+    gap = paired_front_gap(energies, front, [7.0, 9.0, 7.5], 0.5)
+    assert gap["front_gap"] == pytest.approx((-1.0 - 0.5 + 1.0) / 3, rel=1e-14)
+    assert gap["front_gap"] == pytest.approx(47 / 6 - front_eta([(0.0, 10.0), (1.0, 6.0)], 0.5), rel=1e-14)
+    assert (gap["states_below_front"], gap["front_states"]) == (2, 3)
+    assert gap["front_gap_low"] < gap["front_gap"] < gap["front_gap_high"]
+    assert gap["paired_verdict"].startswith("on the front")
+    # What a state shares between the policy and the front drops out: shifting state 1 by +3 in both
+    # changes nothing.
+    shifted = paired_front_gap(
+        energies, [[10.0, 15.0, 8.0], [6.0, 10.0, 5.0]], [7.0, 12.0, 7.5], 0.5
+    )
+    assert shifted["front_gap"] == pytest.approx(gap["front_gap"], rel=1e-14)
+
+
+def test_paired_front_gap_verdicts_and_refusals() -> None:
+    energies, front = [0.0, 1.0], [[10.0, 11.0, 9.0, 10.0], [6.0, 7.0, 5.0, 6.0]]
+    at_half = 0.5  # the front lies at 8, 9, 7, 8
+    below = paired_front_gap(energies, front, [7.0, 7.9, 6.1, 7.0], at_half)
+    assert below["paired_verdict"] == "below the front, paired per state"
+    assert below["front_gap_high"] < 0 and below["states_below_front"] == 4
+    above = paired_front_gap(energies, front, [9.0, 10.1, 7.9, 9.0], at_half)
+    assert above["paired_verdict"] == "above the front, paired per state" and above["front_gap_low"] > 0
+    # A state a point lacks (shapes differ) or a failed episode (NaN): not paired.
+    assert (
+        paired_front_gap(energies, [f[:3] for f in front], [7.0] * 4, at_half)["paired_verdict"]
+        == "not paired"
+    )
+    nan_gap = paired_front_gap(energies, front, [7.0, math.nan, 6.0, 7.0], at_half)
+    assert math.isnan(nan_gap["front_gap"]) and nan_gap["front_states"] == 0
+    assert paired_front_gap(energies, front, [7.0] * 4, math.inf)["paired_verdict"] == "not paired"
+    with pytest.raises(ValueError, match="front_energies"):
+        paired_front_gap([1.0, 0.0], front, [7.0] * 4, at_half)
 
 
 def test_front_points_are_the_pareto_rows_of_summarise_points() -> None:

@@ -148,6 +148,30 @@ def test_repeats_add_realisations_to_stored_points_and_evaluate_averages_them(
     assert verdict["state_gap"] == pytest.approx(gaps.mean(), rel=1e-12, abs=1e-12)
     assert (verdict["states"], verdict["states_above"]) == (2, int(np.sum(gaps > 0)))
     assert "paired per state" in (out / "verdict.md").read_text()
+
+    # its eta_r against the front, paired per state: the front rebuilt from the Pareto points' own eta_r on
+    # each state, at the controller's mean energy
+    def read(path: Path) -> dict:
+        return json.loads(path.read_text())
+
+    summary = read(baseline / "pareto.json")["points"]
+    members = sorted((r for r in summary if r["pareto"]), key=lambda r: r["energy"])
+    points = {m["label"]: read(baseline / "points" / f"{m['label']}.json") for m in members}
+
+    def state_mean(episodes: list, i: int, key: str) -> float:
+        return float(np.mean([e[key] for e in episodes if e["index"] == i]))
+
+    by_hand = [
+        state_mean(stored, i, "eta_second_half")
+        - np.interp(
+            ff_row["energy"]["mean"],
+            [m["energy"] for m in members],
+            [state_mean(points[m["label"]]["episodes"], i, "eta_second_half") for m in members],
+        )
+        for i in (0, 1)
+    ]
+    assert verdict["front_gap"] == pytest.approx(np.mean(by_hand), rel=1e-12, abs=1e-12)
+    assert verdict["front_states"] == 2
     with pytest.raises(SystemExit) as exit_info:
         evaluate.main([*argv[:-1], "3"])
     assert exit_info.value.code == 2
