@@ -1,13 +1,16 @@
 """Evaluate trained policies against the open-loop baseline on held-out start states.
 
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
-        [--split test] [--episodes N] [--repeats K] [--model final|best] [--actions mean|sampled|both]
-        [--workers 2] [--scheduler ADDRESS]
+        [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
+        [--actions mean|sampled|both] [--workers 2] [--scheduler ADDRESS]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
 controllers must hold those realisations (their commands' ``--repeats``), else exit 2. Every statistic
 averages a state's realisations first (:mod:`agents.repeats`): the intervals stay over states and seeds.
+``--policy-repeats K`` sets the trained runs' realisations apart (default: ``--repeats``): five training
+seeds already play each state five times, each from its own trajectory, so one realisation per seed
+resamples the chaotic noise as well as four, at a quarter of the cost.
 
 ``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
 constant fields (played on the same split, start states and schedules, else exit 2). Runs and controllers
@@ -775,6 +778,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="realisations per start state (dipenv.realisations; default 1: the stored states), >= 1",
     )
     parser.add_argument(
+        "--policy-repeats",
+        type=integer_at_least(1),
+        default=None,
+        help="realisations per start state for each trained run (default: --repeats); the training seeds "
+        "already resample an episode's chaotic noise, so 1 with 5 seeds costs a quarter of 4, >= 1",
+    )
+    parser.add_argument(
         "--model",
         choices=("final", "best"),
         default="final",
@@ -855,6 +865,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         for name, runs in groups.items()
         for sampled in sampling
     }
+    policy_repeats = args.repeats if args.policy_repeats is None else args.policy_repeats
     payloads, owners = [], []
     for name, (runs, sampled) in policies.items():
         for run in runs:
@@ -879,7 +890,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "stochastic": sampled,
                     "split": split,
                     "indices": indices,
-                    "repeats": args.repeats,
+                    "repeats": policy_repeats,
                     "path": str(args.out / "runs" / f"{label}.json"),
                     "identity": {
                         "run": str(run.resolve()),
@@ -889,7 +900,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "model_mtime": model_file.stat().st_mtime_ns,
                         "library_key": library_keys[run],  # start states regenerated: played again
                         **({"stochastic": True} if sampled else {}),
-                        **({"repeats": args.repeats} if args.repeats > 1 else {}),
+                        **({"repeats": policy_repeats} if policy_repeats > 1 else {}),
                     },
                 }
             )
@@ -929,6 +940,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     rows = baseline_rows + policy_rows
     table = format_table(rows)
     realisations = f" x {args.repeats} realisations each (averaged per state)" if args.repeats > 1 else ""
+    if policies and policy_repeats != args.repeats:
+        realisations += f" ({policy_repeats} per state and training seed for the policies)"
     header = (
         f"Environment {pareto['env_id']}, {len(indices)} {split} start states{realisations}; eta_r and "
         "energy are time averages over the second half of each episode (energy in eta gammadot per unit "

@@ -294,6 +294,19 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     assert verdict["seeds_above"] == expected["seeds_above"]
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
 
+    # --policy-repeats: the trained runs play each state twice (realisations 0, 1), the baseline once; the
+    # row averages each seed's realisations first
+    out_r2 = tmp_path / "evaluation_r2"
+    result = evaluate.main(
+        [str(ppo), "--baseline", str(baseline), "--out", str(out_r2), "--policy-repeats", "2"]
+    )
+    played = [json.loads((out_r2 / "runs" / f"ppo_seed{k}.json").read_text())["episodes"] for k in (0, 1)]
+    assert [sorted((e["index"], e["realisation"]) for e in eps) for eps in played] == [[(0, 0), (0, 1)]] * 2
+    per_seed = [np.mean([e["return"] for e in eps]) for eps in played]
+    row = next(r for r in result["rows"] if r["name"] == "ppo (ppo)")
+    assert row["per_seed"]["return"] == pytest.approx(per_seed, rel=1e-12)
+    assert "(2 per state and training seed for the policies)" in (out_r2 / "table.md").read_text()
+
     # Bad inputs exit 2 naming the argument: no run in the folder, a baseline of another env
     with pytest.raises(SystemExit) as missing:
         evaluate.main([str(tmp_path / "nowhere"), "--baseline", str(baseline), "--out", str(out)])
