@@ -108,6 +108,17 @@ def position(
     }
 
 
+def _gap_verdict(gaps: list[float], words: dict[int, str], single: str) -> tuple[float, float, float, str]:
+    """Mean of ``gaps`` with its 95% bootstrap interval, and ``words[side]`` of the interval against 0
+    (``single`` appended where one gap gives no interval)."""
+    stats = interval_estimates(gaps)
+    mean, low, high = stats["mean"], stats["ci_low"], stats["ci_high"]
+    verdict = words[side(mean, low, high, 0.0)] if gaps else ""
+    if gaps and math.isnan(low):
+        verdict += single
+    return mean, low, high, verdict
+
+
 def paired_front_gap(
     front_energies: Sequence[float],
     front_states: Sequence[Sequence[float]],
@@ -143,15 +154,12 @@ def paired_front_gap(
         }
     reference = np.array([np.interp(energy, energies, front[:, s]) for s in range(eta.size)])
     gaps = eta - reference
-    stats = interval_estimates(gaps.tolist())
-    mean, low, high = stats["mean"], stats["ci_low"], stats["ci_high"]
-    verdict = {
+    words = {
         -1: "below the front, paired per state",
         1: "above the front, paired per state",
         0: "on the front, paired per state (within the 95% interval)",
-    }[side(mean, low, high, 0.0)]
-    if math.isnan(low):
-        verdict += "; one state, no interval"
+    }
+    mean, low, high, verdict = _gap_verdict(gaps.tolist(), words, "; one state, no interval")
     return {
         "front_gap": mean,
         "front_gap_low": low,
@@ -192,18 +200,10 @@ def return_gap(per_seed_returns: Sequence[float], reference: float) -> dict[str,
     if not math.isfinite(reference):
         raise ValueError(f"reference must be a finite return, got {reference}")
     gaps = [r - reference for r in per_seed_returns if math.isfinite(r)]
-    stats = interval_estimates(gaps)
-    mean, low, high = stats["mean"], stats["ci_low"], stats["ci_high"]
+    words = {1: "higher return", -1: "lower return", 0: "same return within the 95% interval"}
+    mean, low, high, verdict = _gap_verdict(gaps, words, "; one sample, no interval")
     if not gaps:
         verdict = "no finite return"
-    else:
-        verdict = {
-            1: "higher return",
-            -1: "lower return",
-            0: "same return within the 95% interval",
-        }[side(mean, low, high, 0.0)]
-        if math.isnan(low):
-            verdict += "; one sample, no interval"
     return {
         "return_gap": mean,
         "return_gap_low": low,
