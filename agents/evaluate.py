@@ -954,11 +954,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     (args.out / "table.md").write_text(header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)
     controller_rows = baseline_rows[len(baseline_rows) - len(controllers) :]
-    constants = {p["label"]: aggregate_baseline(p["label"], p, indices) for p in points}
     members = sorted((r for r in summary if r["pareto"]), key=lambda r: float(r["energy"]))
     front_states = (
         [float(r["energy"]) for r in members],
-        [constants[r["label"]]["eta_states"] for r in members],
+        [per_state(by_label[r["label"]]["episodes"], "eta_second_half")[1].tolist() for r in members],
     )
     items = verdicts(
         controller_rows + policy_rows,
@@ -993,7 +992,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 p[k] = p["eta"]
     plot_pareto(summary, args.out / "pareto.png", markers)
     if all("excess_viscosity" in r for r in rows):
-        plot_thickening_front(list(constants.values()), controller_rows + policy_rows, args.out)
+        constants = [aggregate_baseline(p["label"], p, indices) for p in points]
+        plot_thickening_front(constants, controller_rows + policy_rows, args.out)
     first = indices[0]
     curves = []
     for name, record in baselines:
