@@ -2,7 +2,7 @@
 
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
         [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
-        [--actions mean|sampled|both] [--workers 2] [--scheduler ADDRESS]
+        [--actions mean|sampled|both] [--play-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
@@ -19,6 +19,12 @@ the map from actions to fields (:func:`physics_difference`): ``ThickeningControl
 share ``ThickeningControl-v2``'s constant fields, and those share ``ThickeningControl-v1``'s. For the
 thickening-control environments the table adds the whole-episode metrics of :mod:`agents.rollout`: the
 fraction of intervals above the cap, the excess ``eta_r`` over it and the field energy.
+
+``--play-kwargs JSON`` plays the trained runs with these env arguments over the ones they were trained
+with: ``'{"simulation_overrides": {}}'`` tests policies trained with a coarser time step
+(``{"simulation_overrides": {"max_displacement": 0.008}}``, half the simulator steps) in the reference
+physics of the baseline. The physics check above then applies to the arguments played, the table's header
+names them, and the per-run results are played again when they change.
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
@@ -52,6 +58,7 @@ and in its training episodes with sampled actions (TensorBoard logs, or the
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import pickle
 import sys
@@ -74,7 +81,14 @@ from agents.repeats import missing, per_state, realisation_of, select, within_st
 from agents.rollout import make_env, run_episode
 from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
-from agents.usage import directory, integer_at_least, output_directory, scheduler_address, usage_error
+from agents.usage import (
+    directory,
+    integer_at_least,
+    json_object,
+    output_directory,
+    scheduler_address,
+    usage_error,
+)
 
 PROG = "python -m agents.evaluate"
 
@@ -201,12 +215,19 @@ def physics_difference(
     (:data:`OBSERVATION_SETTINGS`), the action map (:data:`ACTION_MAP_SETTINGS`) or the rescored energy
     weight depend on: an empty list means that the same fields make the same episodes and metrics in both
     (e.g. ``ThickeningControl-v2``, its stress-only sibling and ``ThickeningControl-v1``), so that one's
-    constant-field baseline serves the other's policies and controllers."""
+    constant-field baseline serves the other's policies and controllers. One entry is not a setting:
+    ``field_direction_action``, whether the action chooses the field's direction (``FieldVector`` ids),
+    since such a baseline's constant fields include directions a magnitude policy cannot play. Trained
+    runs ignore a ``reward`` entry (the baseline is rescored with their reward); controllers do not (their
+    tuned point depends on it)."""
 
     def physics(env_name: str, kwargs: dict[str, Any]) -> dict[str, Any]:
         env = make_env(env_name, {**kwargs, "progress": False})
         try:
             settings = env.unwrapped.settings()  # type: ignore[attr-defined]
+            # whether the action sets the field's direction: a vector env's constant fields include
+            # directions a magnitude env's policies cannot choose
+            settings["field_direction_action"] = bool(getattr(env.unwrapped, "vector_field", False))
         finally:
             env.close()
         for name in OBSERVATION_SETTINGS + ACTION_MAP_SETTINGS:
@@ -289,7 +310,13 @@ def load_controller(
         )
     params = ", ".join(f"{k} {v:g}" for k, v in summary["tuned_params"].items())
     record = {**record, "episodes": select(record["episodes"], indices, repeats)}
-    return f"{summary['controller']} ({params}; tuned on {summary['tune_split']})", rescore(record, reward)
+    # A controller played in another id than the baseline's (same physics, other observation or action
+    # map) names it, so that the same controller on two ids gives two rows one can tell apart.
+    where = (
+        "" if summary["env_id"] == pareto["env_id"] else f" on {summary['env_id'].removeprefix('dipenv/')}"
+    )
+    name = f"{summary['controller']}{where} ({params}; tuned on {summary['tune_split']})"
+    return name, rescore(record, reward)
 
 
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
@@ -321,7 +348,7 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
         return np.asarray(action)
 
     deterministic = not payload.get("stochastic", False)
-    env = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
+    env = make_env(config["env_id"], {**payload.get("env_kwargs", config["env_kwargs"]), "progress": False})
     episodes = []
     for index in payload["indices"]:
         for realisation in range(payload.get("repeats", 1)):
@@ -796,6 +823,13 @@ def build_parser() -> argparse.ArgumentParser:
         default="mean",
         help="play each policy's mean action, its sampled actions (seeded per start state), or both",
     )
+    parser.add_argument(
+        "--play-kwargs",
+        default=None,
+        metavar="JSON",
+        help="JSON object of env arguments that replace the trained runs' own when they are played, e.g. "
+        "'{\"simulation_overrides\": {}}' for policies trained with a coarser step (default: none)",
+    )
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
     return parser
@@ -810,20 +844,36 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     output_directory(PROG, args.out)
     pareto, point_files = read_baseline(args.baseline)
     groups = find_runs(args.runs) if args.runs else {}
-    configs = {run: read_run_config(run) for runs in groups.values() for run in runs}
+    play_kwargs = json_object(PROG, "--play-kwargs", args.play_kwargs) if args.play_kwargs else {}
+    if play_kwargs and not args.runs:
+        usage_error(PROG, "--play-kwargs applies to trained runs (RUN_DIRS); none were given")
+    trained = {run: read_run_config(run) for runs in groups.values() for run in runs}
+    # What each run plays with: its training arguments, overridden by --play-kwargs.
+    configs = {
+        run: {**config, "env_kwargs": {**config["env_kwargs"], **play_kwargs}}
+        for run, config in trained.items()
+    }
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
-        if env_id == pareto["env_id"]:
+        if (env_id, run_config["env_kwargs"]) == (pareto["env_id"], pareto["env_kwargs"]):
             continue
-        differing = physics_difference(
-            env_id, run_config["env_kwargs"], pareto["env_id"], pareto["env_kwargs"]
-        )
+        # The baseline is rescored with the runs' reward below, so only the physics has to match.
+        differing = [
+            name
+            for name in physics_difference(
+                env_id, run_config["env_kwargs"], pareto["env_id"], pareto["env_kwargs"]
+            )
+            if name != "reward"
+        ]
         if differing:
             usage_error(
                 PROG,
-                f"RUN_DIRS: {run} was trained on {env_id}, the --baseline is for {pareto['env_id']}, and "
-                f"they differ in {', '.join(differing)} (beyond what the policy observes and the map from "
-                "actions to fields)",
+                f"RUN_DIRS: {run} was trained on {env_id}"
+                + (f" and is played with {run_config['env_kwargs']!r}" if play_kwargs else "")
+                + f", the --baseline is for {pareto['env_id']}, and they differ in {', '.join(differing)} "
+                "(beyond what the policy observes and the map from actions to fields"
+                + ("" if play_kwargs else "; --play-kwargs plays a run with other env arguments")
+                + ")",
             )
     split = args.split or pareto["split"]
     if split != pareto["split"]:
@@ -891,6 +941,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "split": split,
                     "indices": indices,
                     "repeats": policy_repeats,
+                    "env_kwargs": configs[run]["env_kwargs"],
                     "path": str(args.out / "runs" / f"{label}.json"),
                     "identity": {
                         "run": str(run.resolve()),
@@ -901,6 +952,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "library_key": library_keys[run],  # start states regenerated: played again
                         **({"stochastic": True} if sampled else {}),
                         **({"repeats": policy_repeats} if policy_repeats > 1 else {}),
+                        **({"play_kwargs": play_kwargs} if play_kwargs else {}),
                     },
                 }
             )
@@ -949,7 +1001,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "are 95% stratified-bootstrap intervals (rliable) over training seeds and states (policies) or over "
         "start states (constant fields, controllers). Returns for "
         f"the reward of the policies' env: target eta_r {reward.target_viscosity:g}, energy weight "
-        f"{reward.energy_weight:g} (the baseline rescored with it).\n\n"
+        f"{reward.energy_weight:g} (the baseline rescored with it)."
+        + (
+            f" The trained policies are played with the env arguments {json.dumps(play_kwargs)} over "
+            "those they were trained with."
+            if play_kwargs and policies
+            else ""
+        )
+        + "\n\n"
     )
     (args.out / "table.md").write_text(header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)

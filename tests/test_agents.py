@@ -369,3 +369,54 @@ def test_train_with_subprocess_envs(tmp_path: Path) -> None:
     )
     assert results[0]["timesteps"] >= 64
     assert len(list((out / "monitor").glob("*.monitor.csv"))) == 2
+
+
+def test_evaluate_plays_runs_trained_with_a_coarser_step_in_the_baselines_physics(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--play-kwargs: a run trained with other simulation settings (here a tighter displacement bound, so
+    that the step count surely changes) is refused beside a baseline of the reference physics, naming the
+    setting and the option; played with ``{"simulation_overrides": {}}`` its episodes are those of its
+    policy in the reference env, replayed here by hand (bit for bit), and not those of its training env."""
+    import pickle
+
+    from stable_baselines3 import PPO
+
+    from agents.rollout import run_episode
+
+    overrides = {"simulation_overrides": {"max_displacement": 0.001}}
+    baseline = tmp_path / "open_loop"
+    open_loop.main(["--env", ENV, "--out", str(baseline), "--mason", "off,1", "--episodes", "1"])
+    ppo = tmp_path / "ppo"
+    train.main(
+        ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress", "--algo", "ppo", "--seeds", "0"]
+        + ["--env-kwargs", json.dumps(overrides), "--out", str(ppo), "--hyperparams", *SHORT]
+    )
+    out = tmp_path / "evaluation"
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as refused:
+        evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out)])
+    message = capsys.readouterr().err
+    assert refused.value.code == 2 and "simulation_overrides" in message and "--play-kwargs" in message
+
+    play = ["--play-kwargs", '{"simulation_overrides": {}}']
+    evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), *play])
+    played = json.loads((out / "runs" / "ppo_seed0.json").read_text())["episodes"][0]["trace"]["eta_r"]
+    assert '{"simulation_overrides": {}}' in (out / "table.md").read_text()
+
+    model = PPO.load(str(ppo / "seed0" / "model.zip"), device="cpu")
+    with open(ppo / "seed0" / "vecnormalize.pkl", "rb") as handle:
+        normaliser = pickle.load(handle)
+    normaliser.training = False
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        return np.asarray(model.predict(normaliser.normalize_obs(obs), deterministic=True)[0])
+
+    def replay(kwargs: dict[str, Any]) -> list[float]:
+        env = make_env(ENV, {**kwargs, "progress": False})
+        trace = run_episode(env, policy, "test", 0).to_dict()
+        env.close()
+        return list(trace["eta_r"])
+
+    assert played == replay({})
+    assert played != replay(overrides)

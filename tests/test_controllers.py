@@ -291,6 +291,7 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
         + common
         + [str(other)]
     )
+
     def refusal(folder: Path) -> str:
         with pytest.raises(SystemExit) as exit_info:
             evaluate.main(["--controllers", str(folder), "--baseline", str(baseline), "--out", str(out)])
@@ -334,7 +335,10 @@ def test_evaluate_shares_a_baseline_between_envs_that_differ_only_in_the_observa
     result = evaluate.main(
         ["--controllers", str(stress_only), "--baseline", str(baseline), "--out", str(out)]
     )
-    assert result["rows"][-1]["name"].startswith("pi (")
+    # the row names the id it was played in, as it is not the baseline's
+    assert result["rows"][-1]["name"].startswith(
+        "pi on ThickeningControlStressOnly-v0 (ki 0.5, kp 2, setpoint 7;"
+    )
 
     other_cap = tmp_path / "pi_other_cap"
     controllers.main([*pi_args, "--env", TINY, "--env-kwargs", '{"eta_cap": 6.0}', "--out", str(other_cap)])
