@@ -616,16 +616,20 @@ def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
         cap = float(first.get("eta_cap", math.nan))
         if math.isfinite(cap):
             ax_eta.axhline(cap, color="0.3", ls="--", lw=1, label=f"eta_cap = {cap:g}")
-            ax_eta.legend(handles=ax_eta.get_lines()[-1:], fontsize=7)
     ax_mn.set_yscale("log")
     ax_mn.set_ylabel("Mn_ref (100 = off)" if thickening else "Mn (100 = off)")
     ax_eta.set_ylabel("eta_r (interval average)")
     ax_eta.set_xlabel(
         "time since the episode start (1/gammadot_ref)" if thickening else "strain since the episode start"
     )
-    ax_mn.legend(fontsize=7)
+    if ax_rate is not None and math.isfinite(float(curves[0][1].get("eta_cap", math.nan))):
+        ax_eta.add_artist(ax_eta.legend(handles=ax_eta.get_lines()[-1:], fontsize=7))  # the cap, inside
+    # the policies' legend below the last panel, where it hides no curve (long controller names)
+    ax_eta.legend(
+        handles=ax_mn.get_lines(), fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.22), frameon=False
+    )
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -685,9 +689,9 @@ def plot_thickening_front(constants: list[dict[str, Any]], others: list[dict[str
     ax.set_xscale("log")
     ax.set_xlabel(f"field energy <eps E0^2> (eta gammadot_ref; off plotted at {floor:.2g})")
     ax.set_ylabel("excess eta_r over the cap, time average")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), frameon=False)  # hides no point
     fig.tight_layout()
-    fig.savefig(out / "thickening_front.png", dpi=120)
+    fig.savefig(out / "thickening_front.png", dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
