@@ -314,11 +314,11 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Train one seed into ``payload["out"]`` (a task; see the module docstring). Returns ``result.json``."""
     import torch
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from agents.callbacks import PhysicsLoggerCallback
+    from agents.callbacks import NewestBufferCheckpointCallback, PhysicsLoggerCallback
     from agents.rollout import make_env, make_monitored_env
 
     torch.set_num_threads(1)
@@ -401,7 +401,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     )
     callbacks = CallbackList(
         [
-            CheckpointCallback(
+            NewestBufferCheckpointCallback(
                 save_freq=max(checkpoint_freq // n_envs, 1),
                 save_path=str(checkpoints),
                 name_prefix="ckpt",

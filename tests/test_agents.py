@@ -260,10 +260,18 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
             "learning_starts=16",
             "batch_size=16",
             "eval_freq=64",
-            "checkpoint_freq=64",
+            "checkpoint_freq=32",
         ]
     )
-    assert (sac / "model.zip").exists() and any((sac / "checkpoints").glob("ckpt_replay_buffer_*"))
+    # checkpoints at 32 and 64 steps; only the newest replay buffer is kept (agents.callbacks)
+    assert (sac / "model.zip").exists()
+    assert sorted(p.name for p in (sac / "checkpoints").glob("ckpt_*_steps.zip")) == [
+        "ckpt_32_steps.zip",
+        "ckpt_64_steps.zip",
+    ]
+    assert [p.name for p in (sac / "checkpoints").glob("ckpt_replay_buffer_*")] == [
+        "ckpt_replay_buffer_64_steps.pkl"
+    ]
 
     out = tmp_path / "evaluation"
     capsys.readouterr()
