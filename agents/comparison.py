@@ -211,3 +211,100 @@ def return_gap(per_seed_returns: Sequence[float], reference: float) -> dict[str,
         "seeds_above": sum(g > 0 for g in gaps),
         "return_verdict": verdict,
     }
+
+
+ENERGY_SAVING_TARGET = 0.30
+"""Issue 21's target: at least 30% less field energy than the best constant field, at equal or lower
+thickening penalty."""
+
+
+def energy_target(
+    energy_states: Sequence[float],
+    excess_states: Sequence[float],
+    best_energy_states: Sequence[float],
+    best_excess_states: Sequence[float],
+    target: float = ENERGY_SAVING_TARGET,
+    resamples: int = 10_000,
+) -> dict[str, Any]:
+    """Field energy saved against the best constant field, and the thickening penalty's change, paired per
+    start state (issue 21's target for the thickening-control study).
+
+    Inputs are per start state (a policy's seeds and every row's realisations averaged first): the
+    whole-episode field energy ``<eps E0^2>`` and the excess ``eta_r`` over the cap, of the row and of the
+    best constant field, on the same states in the same order.
+
+    * ``energy_saved = 1 - sum_s E_s / sum_s E_best,s`` (the saving of the mean energy), with a 95%
+      percentile bootstrap interval that resamples the states (paired: the same states for both; numpy's
+      generator seeded with 0, ``resamples`` draws).
+    * ``excess_gap``: the mean over states of ``X_s - X_best,s`` with its 95% bootstrap interval
+      (:mod:`agents.statistics`); ``states_less_excess`` counts the states where the row thickens less.
+    * ``target_verdict``: "met" if the interval of the saving lies at or above ``target`` and the row does
+      not thicken more (the excess gap's interval is not above 0); "not met" if the saving's interval lies
+      below ``target`` or the row thickens more; else "not resolved" (the saving's interval spans the
+      target). The parts are spelled out in ``energy_verdict`` and ``excess_verdict``.
+
+    NaN and "not paired" where the lengths differ, a value is not finite or the constant spends no energy.
+    """
+    e, x = np.asarray(energy_states, dtype=float), np.asarray(excess_states, dtype=float)
+    e0, x0 = np.asarray(best_energy_states, dtype=float), np.asarray(best_excess_states, dtype=float)
+    arrays = (e, x, e0, x0)
+    if (
+        len({a.shape for a in arrays}) != 1
+        or e.ndim != 1
+        or e.size == 0
+        or not all(np.isfinite(a).all() for a in arrays)
+        or e0.sum() <= 0
+    ):
+        nan = math.nan
+        keys = ("energy_saved", "energy_saved_low", "energy_saved_high", "excess_gap", "excess_gap_low")
+        return {
+            **dict.fromkeys((*keys, "excess_gap_high"), nan),
+            "states_less_excess": 0,
+            "target_states": 0,
+            "energy_verdict": "not paired",
+            "excess_verdict": "not paired",
+            "target_verdict": "not paired",
+        }
+    saved = 1.0 - e.sum() / e0.sum()
+    if e.size > 1:
+        rng = np.random.default_rng(0)
+        draws = rng.integers(0, e.size, size=(resamples, e.size))
+        totals = e0[draws].sum(axis=1)
+        valid = totals > 0
+        boot = 1.0 - e[draws].sum(axis=1)[valid] / totals[valid]
+        low, high = (float(v) for v in np.percentile(boot, [2.5, 97.5]))
+    else:
+        low = high = math.nan
+    gaps = (x - x0).tolist()
+    words = {-1: "thickens less", 1: "thickens more", 0: "same thickening within the 95% interval"}
+    gap, gap_low, gap_high, excess_verdict = _gap_verdict(gaps, words, "; one state, no interval")
+    percent = f"{100 * target:.0f}%"
+    if math.isnan(low):
+        energy_verdict = f"saves {100 * saved:.0f}%; one state, no interval"
+        resolved = None
+    elif low >= target:
+        energy_verdict, resolved = f"saves at least {percent}", True
+    elif high < target:
+        energy_verdict, resolved = f"saves less than {percent}", False
+    else:
+        energy_verdict, resolved = f"the saving's interval spans {percent}", None
+    more = side(gap, gap_low, gap_high, 0.0) == 1
+    if resolved is False or more:
+        target_verdict = "not met"
+    elif resolved:
+        target_verdict = "met"
+    else:
+        target_verdict = "not resolved"
+    return {
+        "energy_saved": float(saved),
+        "energy_saved_low": low,
+        "energy_saved_high": high,
+        "excess_gap": gap,
+        "excess_gap_low": gap_low,
+        "excess_gap_high": gap_high,
+        "states_less_excess": int(np.sum(x < x0)),
+        "target_states": int(e.size),
+        "energy_verdict": energy_verdict,
+        "excess_verdict": excess_verdict,
+        "target_verdict": target_verdict,
+    }

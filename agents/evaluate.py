@@ -69,7 +69,9 @@ import numpy as np
 import yaml
 
 from agents.comparison import (
+    ENERGY_SAVING_TARGET,
     action_variation,
+    energy_target,
     front_eta,
     front_points,
     paired_front_gap,
@@ -390,6 +392,10 @@ THICKENING_METRICS = (
 the episodes carry them."""
 
 
+TARGET_METRICS = ("energy_mean", "excess_viscosity")
+"""The per-state metrics a row keeps (``row["states"]``) for :func:`agents.comparison.energy_target`."""
+
+
 def _metrics(episodes: list[dict[str, Any]]) -> tuple[tuple[str, str], ...]:
     base = (("eta", "eta_second_half"), ("energy", "energy_second_half"), ("return", "return"))
     if episodes and all("excess_viscosity" in e for e in episodes):
@@ -419,6 +425,7 @@ def aggregate_policy(name: str, records: list[dict[str, Any]]) -> dict[str, Any]
         "per_seed": per_seed,
         "returns": _scores(records, "return").tolist(),
         "eta_states": _state_means(_scores(records, "eta_second_half")),
+        "states": {m: _state_means(_scores(records, key)) for m, key in metrics if m in TARGET_METRICS},
         "episode_noise": within_state_sd([e for r in records for e in r["episodes"]], "return"),
     }
 
@@ -438,6 +445,7 @@ def aggregate_baseline(name: str, record: dict[str, Any], indices: list[int]) ->
         **{metric: interval_estimates(values.tolist()) for metric, values in means.items()},
         "returns": [means["return"].tolist()],
         "eta_states": means["eta"].tolist(),
+        "states": {m: values.tolist() for m, values in means.items() if m in TARGET_METRICS},
         "per_seed": {metric: [float(np.nanmean(values))] for metric, values in means.items()},
         "episode_noise": within_state_sd(episodes, "return"),
     }
@@ -514,9 +522,21 @@ def verdicts(
                 **state_gap(row, best),
                 **_improvement(row, best),
                 **action_variation([e for r in runs for e in r["episodes"]]),
+                **_target(row, best),
             }
         )
     return out
+
+
+def _target(row: dict[str, Any], best: dict[str, Any]) -> dict[str, Any]:
+    """Issue 21's energy target against the best constant (:func:`agents.comparison.energy_target`), for
+    rows of the thickening-control envs (those that keep the per-state energy and excess); else nothing."""
+    mine, theirs = row.get("states", {}), best.get("states", {})
+    if not all(m in mine and m in theirs for m in TARGET_METRICS):
+        return {}
+    return energy_target(
+        mine["energy_mean"], mine["excess_viscosity"], theirs["energy_mean"], theirs["excess_viscosity"]
+    )
 
 
 def _paired_returns(row: dict[str, Any], best: dict[str, Any]) -> tuple[np.ndarray, np.ndarray] | None:
@@ -585,6 +605,28 @@ def format_verdicts(items: list[dict[str, Any]]) -> str:
             f"{v['seeds_above']}/{v['seeds']} | {v['return_verdict']} | {paired} | {states} | "
             f"{improvement} | {front_gap} | {below} | {v['paired_verdict']} |"
         )
+    targets = [v for v in items if "target_verdict" in v]
+    if targets:
+        lines += [
+            "",
+            "Field energy against the best constant field, paired per state (the target: at least "
+            f"{100 * ENERGY_SAVING_TARGET:.0f}% less whole-episode field energy at equal or lower excess "
+            "eta_r over the cap; agents.comparison.energy_target):",
+            "",
+            "| policy | field energy saved [95% CI] | energy verdict | excess eta_r - best constant [95% CI] "
+            "| states with less excess | excess verdict | target |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for v in targets:
+            saved = format_interval(
+                100 * v["energy_saved"], 100 * v["energy_saved_low"], 100 * v["energy_saved_high"], ".0f"
+            )
+            excess = format_interval(v["excess_gap"], v["excess_gap_low"], v["excess_gap_high"], "+.3f")
+            lines.append(
+                f"| {v['name']} | {saved} % | {v['energy_verdict']} | {excess} | "
+                f"{v['states_less_excess']}/{v['target_states']} | {v['excess_verdict']} | "
+                f"{v['target_verdict']} |"
+            )
     return "\n".join(lines)
 
 

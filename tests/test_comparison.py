@@ -8,6 +8,7 @@ import pytest
 
 from agents.comparison import (
     action_variation,
+    energy_target,
     front_energy,
     front_eta,
     front_points,
@@ -138,3 +139,48 @@ def test_return_gap_is_paired_per_seed() -> None:
     assert one["return_verdict"] == "lower return; one sample, no interval" and one["seeds_above"] == 0
     with pytest.raises(ValueError, match="reference"):
         return_gap([-130.0], math.inf)
+
+
+def test_energy_target_by_hand() -> None:
+    """The energy saving is 1 - (sum of the row's energies) / (sum of the constant's), paired per state.
+    With three states the paired bootstrap's 2.5% and 97.5% percentiles are, exactly, the smallest and the
+    largest single-state saving: a ratio of sums lies between its terms' ratios (the mediant inequality),
+    and each state drawn three times has probability 1/27 = 3.7% > 2.5% (~370 of 10^4 draws, far above
+    the 250 that the percentile's rank needs)."""
+    best_energy, best_excess = [2.0, 2.0, 2.0], [0.8, 0.8, 0.8]
+    energy = [0.8, 1.2, 1.0]  # savings 60%, 40%, 50% per state; 50% of the sums
+    result = energy_target(energy, [0.7, 0.9, 0.8], best_energy, best_excess)
+    assert result["energy_saved"] == pytest.approx(0.5, abs=1e-15)
+    assert result["energy_saved_low"] == pytest.approx(0.4, abs=1e-15)
+    assert result["energy_saved_high"] == pytest.approx(0.6, abs=1e-15)
+    assert result["excess_gap"] == pytest.approx(0.0, abs=1e-15)
+    assert result["states_less_excess"] == 1 and result["target_states"] == 3
+    assert result["energy_verdict"] == "saves at least 30%"
+    assert result["excess_verdict"] == "same thickening within the 95% interval"
+    assert result["target_verdict"] == "met"
+
+
+def test_energy_target_verdicts_and_refusals() -> None:
+    best_energy, best_excess = [2.0] * 4, [0.8, 0.6, 1.0, 0.7]
+    # half the energy, but more thickening on every state: not met
+    more = energy_target([1.0] * 4, [x + 0.3 for x in best_excess], best_energy, best_excess)
+    assert more["excess_verdict"] == "thickens more" and more["target_verdict"] == "not met"
+    assert more["excess_gap"] == pytest.approx(0.3, abs=1e-12)
+    # 10% saved on every state: resolved below the target
+    little = energy_target([1.8] * 4, best_excess, best_energy, best_excess)
+    assert little["energy_verdict"] == "saves less than 30%" and little["target_verdict"] == "not met"
+    # savings of 0% to 60% by state (30% of the sums): the interval spans the target
+    spread = energy_target([2.0, 0.8, 1.4, 1.4], best_excess, best_energy, best_excess)
+    assert spread["energy_saved"] == pytest.approx(0.3, abs=1e-12)
+    assert spread["target_verdict"] == "not resolved"
+    # less thickening and more than 30% saved: met
+    less = energy_target([1.0] * 4, [x - 0.2 for x in best_excess], best_energy, best_excess)
+    assert less["excess_verdict"] == "thickens less" and less["target_verdict"] == "met"
+    # not pairable: other lengths, a failed episode, a constant without energy
+    for args in (
+        ([1.0] * 3, [0.8] * 3, best_energy, best_excess),
+        ([1.0, math.nan, 1.0, 1.0], best_excess, best_energy, best_excess),
+        ([1.0] * 4, best_excess, [0.0] * 4, best_excess),
+    ):
+        refused = energy_target(*args)
+        assert refused["target_verdict"] == "not paired" and math.isnan(refused["energy_saved"])

@@ -277,6 +277,19 @@ def test_evaluate_reports_tuned_controllers_beside_the_constant_fields(
     expected = np.mean([e["excess_viscosity"] for e in record["episodes"]])
     assert row["excess_viscosity"]["mean"] == pytest.approx(expected, rel=1e-12)
     assert "time above cap" in (out / "table.md").read_text()
+    # the energy target, paired per state against the best constant (agents.comparison.energy_target)
+    item = next(v for v in result["verdicts"] if v["name"] == row["name"])
+    best = next(r for r in result["rows"] if r["name"].startswith("best constant"))
+    label = best["name"].removeprefix("best constant (").removesuffix(")")
+    constant = json.loads((baseline / "points" / f"{label}.json").read_text())["episodes"]
+    by_state = {i: np.mean([e["energy_mean"] for e in record["episodes"] if e["index"] == i]) for i in (0, 1)}
+    theirs = {i: np.mean([e["energy_mean"] for e in constant if e["index"] == i]) for i in (0, 1)}
+    if sum(theirs.values()) > 0:
+        saved = 1 - sum(by_state.values()) / sum(theirs.values())
+        assert item["energy_saved"] == pytest.approx(saved, rel=1e-12, abs=1e-12)
+    else:
+        assert item["target_verdict"] == "not paired"
+    assert "| target |" in (out / "verdict.md").read_text()
     assert (out / "traces.png").exists()
     front = json.loads((out / "thickening_front.json").read_text())
     assert [p["name"] for p in front["constant_fields"]] == ["Mn1", "off"]  # the baseline's points
