@@ -1,5 +1,5 @@
-"""Callbacks: log the physics of each step (from the env's ``info``) to the SB3 logger / TensorBoard, and
-checkpoints that keep only the newest replay buffer."""
+"""Callbacks: log the physics of each step (from the env's ``info``) to the SB3 logger / TensorBoard,
+checkpoints that keep only the newest replay buffer, and a stop on request (SIGTERM) that saves one."""
 
 from __future__ import annotations
 
@@ -19,15 +19,47 @@ class NewestBufferCheckpointCallback(CheckpointCallback):
     (for ``agents.evaluate --model best`` and learning curves)."""
 
     def _on_step(self) -> bool:
-        saving = self.n_calls % self.save_freq == 0
-        result = super()._on_step()
-        if saving and self.save_replay_buffer:
+        if self.n_calls % self.save_freq == 0:
+            self.save_now()
+        return True
+
+    def save_now(self) -> None:
+        """Save the model, the normalisation statistics and (SAC) the replay buffer at the current step,
+        then delete the older replay buffers."""
+        self.model.save(self._checkpoint_path(extension="zip"))
+        if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
             newest = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
-            if newest.exists():  # delete the old ones only once the new one is written
-                for old in newest.parent.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
-                    if old != newest:
-                        old.unlink()
-        return result
+            self.model.save_replay_buffer(str(newest))  # type: ignore[attr-defined]
+            for old in newest.parent.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
+                if old != newest:  # the new one is written: the old ones can go
+                    old.unlink()
+        normaliser = self.model.get_vec_normalize_env()
+        if self.save_vecnormalize and normaliser is not None:
+            normaliser.save(self._checkpoint_path("vecnormalize_", extension="pkl"))
+
+
+class StopOnSignalCallback(BaseCallback):
+    """Stop training at the next environment step once :meth:`request` has been called (``agents.train``
+    installs it as the SIGTERM handler), saving a checkpoint at that step first, so that an interrupted
+    run resumes from where it stopped instead of from its last periodic checkpoint. ``stopped_at`` is then
+    the step count. A validation pass under way finishes first (it runs inside its own callback)."""
+
+    def __init__(self, checkpoint: NewestBufferCheckpointCallback, verbose: int = 0) -> None:
+        super().__init__(verbose)
+        self.checkpoint = checkpoint
+        self.requested = False
+        self.stopped_at: int | None = None
+
+    def request(self, *_: object) -> None:
+        """Ask for a stop (signal-handler signature: ``request(signum, frame)``)."""
+        self.requested = True
+
+    def _on_step(self) -> bool:
+        if not self.requested:
+            return True
+        self.checkpoint.save_now()
+        self.stopped_at = int(self.num_timesteps)
+        return False
 
 
 class PhysicsLoggerCallback(BaseCallback):

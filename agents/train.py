@@ -18,6 +18,8 @@ versions), ``command.txt``, ``model.zip``, ``vecnormalize.pkl``, ``result.json``
 skips finished runs and resumes interrupted ones from their last checkpoint (not bit-identical to an
 uninterrupted run: the environments restart their episodes); the validation log and the best model carry
 over, and the Monitor files are appended to (episodes finished after the last checkpoint stay in them).
+SIGTERM (``pkill -TERM -f agents.train``) stops a run at its next environment step with a checkpoint at
+that step and exits 143 without a result, so the rerun loses nothing but the episodes under way.
 With ``--seeds`` each seed is a task in ``OUT/seed<k>`` on the local pool (``--workers``) or a Dask
 cluster (``--scheduler``).
 """
@@ -30,7 +32,9 @@ import json
 import math
 import multiprocessing as mp
 import re
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -318,7 +322,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from agents.callbacks import NewestBufferCheckpointCallback, PhysicsLoggerCallback
+    from agents.callbacks import NewestBufferCheckpointCallback, PhysicsLoggerCallback, StopOnSignalCallback
     from agents.rollout import make_env, make_monitored_env
 
     torch.set_num_threads(1)
@@ -399,15 +403,17 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     eval_env: Any = (
         VecNormalize(eval_venv, training=False, norm_reward=False, gamma=gamma) if normalize else eval_venv
     )
+    checkpointer = NewestBufferCheckpointCallback(
+        save_freq=max(checkpoint_freq // n_envs, 1),
+        save_path=str(checkpoints),
+        name_prefix="ckpt",
+        save_vecnormalize=normalize,
+        save_replay_buffer=algo == "sac",
+    )
+    stopper = StopOnSignalCallback(checkpointer)
     callbacks = CallbackList(
         [
-            NewestBufferCheckpointCallback(
-                save_freq=max(checkpoint_freq // n_envs, 1),
-                save_path=str(checkpoints),
-                name_prefix="ckpt",
-                save_vecnormalize=normalize,
-                save_replay_buffer=algo == "sac",
-            ),
+            checkpointer,
             EvalCallback(
                 eval_env,
                 n_eval_episodes=n_validation,
@@ -418,20 +424,38 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
                 verbose=0,
             ),
             PhysicsLoggerCallback(),
+            stopper,
         ]
     )
     if latest is not None:
         _restore_eval_history(callbacks.callbacks[1], out / "eval" / "evaluations.npz", steps_done)
     tic = time.perf_counter()
     remaining = max(total - steps_done, 0)
-    if remaining:
-        model.learn(
-            total_timesteps=remaining,
-            callback=callbacks,
-            progress_bar=progress,
-            reset_num_timesteps=latest is None,
-            tb_log_name="run",
+    # SIGTERM (e.g. `pkill -TERM -f agents.train`) stops at the next step with a checkpoint there.
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, stopper.request)
+    try:
+        if remaining:
+            model.learn(
+                total_timesteps=remaining,
+                callback=callbacks,
+                progress_bar=progress,
+                reset_num_timesteps=latest is None,
+                tb_log_name="run",
+            )
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+    if stopper.stopped_at is not None:
+        env.close()
+        eval_env.close()
+        print(
+            f"{PROG}: {out} stopped by SIGTERM at step {stopper.stopped_at} of {total}; its checkpoint is "
+            "saved: rerun the same command to resume",
+            file=sys.stderr,
         )
+        raise SystemExit(128 + signal.SIGTERM)
     wall = time.perf_counter() - tic
     model.save(str(out / "model.zip"))
     if normalize:

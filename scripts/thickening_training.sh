@@ -3,7 +3,8 @@
 # ThickeningControl-v2, then PPO with 4 frames of history on the stress-only id; 5 seeds each, trained with
 # the displacement bound doubled (docs/thickening_control.md#coarse-training). Every stage resumes from
 # its folders' checkpoints, so the script is rerun as is after an interruption (a finished seed returns at
-# once). Stop it with `pkill -TERM -f agents.train` and commit the result folders (small files).
+# once). Stop it with `pkill -TERM -f agents.train` (the run saves a checkpoint at the step it reached and
+# the script ends) and commit the result folders (small files).
 #
 #     scripts/thickening_training.sh [OUT]   # default OUT: results/thickening_control/v2/rl
 #

@@ -428,3 +428,50 @@ def test_evaluate_plays_runs_trained_with_a_coarser_step_in_the_baselines_physic
 
     assert played == replay({})
     assert played != replay(overrides)
+
+
+def test_sigterm_stops_training_with_a_checkpoint_and_the_rerun_resumes_there(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """SIGTERM during agents.train: the run stops at the next step with a checkpoint (model and
+    normalisation) at that step, between the periodic ones, exits 143 and writes no result; the same
+    command resumes from that step and finishes."""
+    import os
+    import signal
+
+    from agents import callbacks
+
+    sent = []
+    original = callbacks.PhysicsLoggerCallback._on_step
+
+    def signalling(self: callbacks.PhysicsLoggerCallback) -> bool:
+        if self.num_timesteps == 40 and not sent:  # between the checkpoints at 32 and 64
+            sent.append(True)
+            os.kill(os.getpid(), signal.SIGTERM)
+        return original(self)
+
+    monkeypatch.setattr(callbacks.PhysicsLoggerCallback, "_on_step", signalling)
+    caught = []  # outside training a SIGTERM lands here, not in pytest's default (which would end it)
+
+    def outer(signum: int, frame: object) -> None:
+        caught.append(signum)
+
+    previous = signal.signal(signal.SIGTERM, outer)
+    run = tmp_path / "ppo"
+    argv = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress", "--algo", "ppo"]
+    argv += ["--seed", "0", "--out", str(run), "--hyperparams", *SHORT]
+    try:
+        with pytest.raises(SystemExit) as stopped:
+            train.main(argv)
+    finally:
+        assert signal.getsignal(signal.SIGTERM) is outer  # agents.train put the outer handler back
+        signal.signal(signal.SIGTERM, previous)
+    assert stopped.value.code == 128 + signal.SIGTERM and caught == []
+    assert "stopped by SIGTERM at step 40" in capsys.readouterr().err
+    assert (run / "checkpoints" / "ckpt_40_steps.zip").exists()
+    assert (run / "checkpoints" / "ckpt_vecnormalize_40_steps.pkl").exists()
+    assert not (run / "result.json").exists() and not (run / "model.zip").exists()
+
+    monkeypatch.setattr(callbacks.PhysicsLoggerCallback, "_on_step", original)
+    result = train.main(argv)[0]
+    assert result["resumed_from"] == 40 and result["timesteps"] >= 64
