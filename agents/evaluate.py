@@ -2,7 +2,8 @@
 
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
         [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
-        [--actions mean|sampled|both] [--play-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
+        [--actions mean|sampled|both] [--play-kwargs JSON] [--validation-baseline OPEN_LOOP_DIR]
+        [--workers 2] [--scheduler ADDRESS]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
@@ -111,26 +112,55 @@ def read_run_config(run: Path) -> dict[str, Any]:
     return config
 
 
-def read_baseline(folder: Path) -> tuple[dict[str, Any], list[Path]]:
+def read_baseline(folder: Path, option: str = "--baseline") -> tuple[dict[str, Any], list[Path]]:
     """``pareto.json`` and the point files of an ``agents.open_loop`` folder, or exit 2 naming
-    ``--baseline`` when the folder is missing, empty or corrupt."""
+    ``option`` when the folder is missing, empty or corrupt."""
     path = folder / "pareto.json"
     if not folder.is_dir():
-        usage_error(PROG, f"--baseline {folder} is not a folder (give an agents.open_loop --out)")
+        usage_error(PROG, f"{option} {folder} is not a folder (give an agents.open_loop --out)")
     try:
         pareto = read_json(path)
     except (OSError, ValueError) as error:
         usage_error(
             PROG,
-            f"--baseline {folder}: {path} cannot be read ({type(error).__name__}: {error}); is it an "
+            f"{option} {folder}: {path} cannot be read ({type(error).__name__}: {error}); is it an "
             "agents.open_loop --out that has finished?",
         )
     if not isinstance(pareto, dict) or any(k not in pareto for k in ("env_id", "env_kwargs", "split")):
-        usage_error(PROG, f"--baseline {folder}: {path} is not an agents.open_loop pareto.json")
+        usage_error(PROG, f"{option} {folder}: {path} is not an agents.open_loop pareto.json")
     points = sorted((folder / "points").glob("*.json"))
     if not points:
-        usage_error(PROG, f"--baseline {folder}: no points/*.json in it (rerun agents.open_loop)")
+        usage_error(PROG, f"{option} {folder}: no points/*.json in it (rerun agents.open_loop)")
     return pareto, points
+
+
+def validation_lines(folder: Path, pareto: dict[str, Any], reward: Any) -> list[tuple[str, float]]:
+    """The no-field and best-constant returns of ``--validation-baseline`` (an ``agents.open_loop`` folder
+    on the validation states, rescored with ``reward``), for the learning curves: the validation returns
+    of the runs are measured on those states, the table's constants on the test states. Exit 2 unless it
+    holds validation states of the test baseline's physics and library."""
+    option = "--validation-baseline"
+    other, files = read_baseline(folder, option)
+    if other["split"] != "validation":
+        usage_error(PROG, f"{option} {folder} was played on the {other['split']} states, not validation")
+    same = (other["env_id"], other["env_kwargs"]) == (pareto["env_id"], pareto["env_kwargs"])
+    differing = (
+        []
+        if same
+        else physics_difference(other["env_id"], other["env_kwargs"], pareto["env_id"], pareto["env_kwargs"])
+    )
+    differing = [d for d in differing if d != "reward"]  # rescored below
+    if differing or other.get("library_key") != pareto.get("library_key"):
+        what = ", ".join(differing) if differing else "the start-state library"
+        usage_error(PROG, f"{option} {folder} differs from --baseline in {what}")
+    points = [rescore(read_json(p), reward) for p in files]
+    summary = summarise_points(points)
+    best = max(summary, key=lambda r: r["return"])
+    lines = [(f"best constant ({best['label']}), validation states", float(best["return"]))]
+    off = next((r for r in summary if r["label"] == "off"), None)
+    if off is not None and off is not best:
+        lines.insert(0, ("no field, validation states", float(off["return"])))
+    return lines
 
 
 def check_loadable(run: Path, algo: str, model_file: Path, stats_file: Path, normalize: bool) -> None:
@@ -809,8 +839,8 @@ def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, floa
             if steps.size:
                 label = f"{name}: training, sampled actions" if j == 0 else None
                 ax.plot(steps, returns, "-", lw=0.8, alpha=0.5, color=colour, label=label)
-    for (name, value), style in zip(baselines, ("--", ":", "-."), strict=False):
-        ax.axhline(value, color="0.3", ls=style, lw=1, label=f"{name} (test states)")
+    for (name, value), style in zip(baselines, ("--", ":", "-.", (0, (5, 1)), (0, (1, 3))), strict=False):
+        ax.axhline(value, color="0.3", ls=style, lw=1, label=name)
     ax.set_xlabel("environment steps")
     ax.set_ylabel("episode return")
     ax.legend(fontsize=7)
@@ -835,6 +865,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--baseline", required=True, type=Path, help="an agents.open_loop output folder")
     parser.add_argument("--out", required=True, type=directory)
+    parser.add_argument(
+        "--validation-baseline",
+        type=Path,
+        default=None,
+        help="an agents.open_loop folder on the validation states: its no-field and best constant returns "
+        "join learning.png, where the runs' validation returns are on those states (default: none)",
+    )
     parser.add_argument(
         "--split",
         default=None,
@@ -942,6 +979,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     except (OSError, ValueError, KeyError, TypeError) as error:
         kind = type(error).__name__
         usage_error(PROG, f"--baseline {args.baseline}: a point file cannot be read ({kind}: {error})")
+    validation = (
+        validation_lines(args.validation_baseline, pareto, reward) if args.validation_baseline else []
+    )
     baseline_indices = sorted({e["index"] for e in points[0]["episodes"]})
     if args.episodes is not None and not 1 <= args.episodes <= len(baseline_indices):
         usage_error(PROG, f"--episodes must be in [1, {len(baseline_indices)}] (the baseline's states)")
@@ -1115,11 +1155,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             if e["index"] == first and realisation_of(e) == 0
         ]
     plot_traces(curves, args.out / "traces.png")
-    plot_learning(
-        groups,
-        [(r["name"], r["return"]["mean"]) for r in baseline_rows],
-        args.out / "learning.png",
-    )
+    lines = [(f"{r['name']} (test states)", r["return"]["mean"]) for r in baseline_rows[:2]]
+    plot_learning(groups, lines + validation, args.out / "learning.png")
     print(header + table + "\n\n" + verdict)
     return {"rows": rows, "verdicts": items}
 

@@ -274,8 +274,34 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     ]
 
     out = tmp_path / "evaluation"
+    validation = tmp_path / "open_loop_validation"
+    open_loop.main(
+        [
+            "--env",
+            ENV,
+            "--out",
+            str(validation),
+            "--mason",
+            "off,1",
+            "--split",
+            "validation",
+            "--episodes",
+            "1",
+        ]
+    )
     capsys.readouterr()
-    evaluate.main([str(ppo), str(sac), "--baseline", str(baseline), "--out", str(out)])
+    evaluate.main(
+        [
+            str(ppo),
+            str(sac),
+            "--baseline",
+            str(baseline),
+            "--out",
+            str(out),
+            "--validation-baseline",
+            str(validation),
+        ]
+    )
     printed = capsys.readouterr().out
     assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
     # The baseline was last scored with target 3.0; the table rescores it with the policies' (default) reward.
@@ -475,3 +501,59 @@ def test_sigterm_stops_training_with_a_checkpoint_and_the_rerun_resumes_there(
     monkeypatch.setattr(callbacks.PhysicsLoggerCallback, "_on_step", original)
     result = train.main(argv)[0]
     assert result["resumed_from"] == 40 and result["timesteps"] >= 64
+
+
+def test_validation_baseline_lines_are_its_no_field_and_best_constant_returns(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """evaluate.validation_lines: the no-field and best-constant returns of an open-loop folder on the
+    validation states (the mean of its stored episode returns, for the reward given), for learning.png;
+    a folder on other states than validation, or of other physics, is refused (exit 2)."""
+    test = tmp_path / "open_loop"
+    validation = tmp_path / "open_loop_validation"
+    open_loop.main(["--env", ENV, "--out", str(test), "--mason", "off,1", "--episodes", "1"])
+    open_loop.main(
+        [
+            "--env",
+            ENV,
+            "--out",
+            str(validation),
+            "--mason",
+            "off,1",
+            "--split",
+            "validation",
+            "--episodes",
+            "2",
+        ]
+    )
+    pareto = json.loads((test / "pareto.json").read_text())
+    reward = make_env(ENV).unwrapped.reward_function
+    returns = {
+        label: float(
+            np.mean(
+                [
+                    e["return"]
+                    for e in json.loads((validation / "points" / f"{label}.json").read_text())["episodes"]
+                ]
+            )
+        )
+        for label in ("off", "Mn1")
+    }
+    best = max(returns, key=returns.__getitem__)
+    lines = evaluate.validation_lines(validation, pareto, reward)
+    expected = [(f"best constant ({best}), validation states", returns[best])]
+    if best != "off":
+        expected.insert(0, ("no field, validation states", returns["off"]))
+    assert [name for name, _ in lines] == [name for name, _ in expected]
+    assert [value for _, value in lines] == pytest.approx([value for _, value in expected], rel=1e-12)
+
+    with pytest.raises(SystemExit) as wrong_split:
+        evaluate.validation_lines(test, pareto, reward)
+    assert wrong_split.value.code == 2 and "not validation" in capsys.readouterr().err
+    other = tmp_path / "other"
+    shutil.copytree(validation, other)
+    moved = json.loads((other / "pareto.json").read_text())
+    (other / "pareto.json").write_text(json.dumps({**moved, "env_id": "dipenv/FieldVectorTiny-v0"}))
+    with pytest.raises(SystemExit) as wrong_env:
+        evaluate.validation_lines(other, pareto, reward)
+    assert wrong_env.value.code == 2 and "differs from --baseline" in capsys.readouterr().err
