@@ -183,16 +183,19 @@ def check_loadable(run: Path, algo: str, model_file: Path, stats_file: Path, nor
             usage_error(PROG, f"RUN_DIRS: {stats_file} holds no VecNormalize statistics")
 
 
-def find_runs(paths: list[Path]) -> dict[str, list[Path]]:
-    """Group run folders into policies (see the module docstring); name -> run folders."""
+def find_runs(paths: list[Path], marker: str = "model.zip") -> dict[str, list[Path]]:
+    """Group run folders into policies (see the module docstring); name -> run folders. A run folder is
+    one that holds ``marker``: ``model.zip`` (a finished run) or, for ``--model best``,
+    ``eval/evaluations.npz`` (a run with a validation, finished or still training)."""
+    depth = len(Path(marker).parts)
     groups: dict[str, list[Path]] = {}
     for path in paths:
-        if (path / "model.zip").exists():
+        if (path / marker).exists():
             key, runs = path.parent, [path]
         else:
-            key, runs = path, sorted(p.parent for p in path.glob("*/model.zip"))
+            key, runs = path, sorted(p.parents[depth - 1] for p in path.glob(f"*/{marker}"))
         if not runs:
-            usage_error(PROG, f"RUN_DIRS: {path}: no model.zip in it or in its subfolders")
+            usage_error(PROG, f"RUN_DIRS: {path}: no {marker} in it or in its subfolders")
         config = read_run_config(runs[0])
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
@@ -926,7 +929,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         )
     output_directory(PROG, args.out)
     pareto, point_files = read_baseline(args.baseline)
-    groups = find_runs(args.runs) if args.runs else {}
+    marker = "eval/evaluations.npz" if args.model == "best" else "model.zip"
+    groups = find_runs(args.runs, marker) if args.runs else {}
     play_kwargs = json_object(PROG, "--play-kwargs", args.play_kwargs) if args.play_kwargs else {}
     if play_kwargs and not args.runs:
         usage_error(PROG, "--play-kwargs applies to trained runs (RUN_DIRS); none were given")

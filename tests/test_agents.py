@@ -366,6 +366,20 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     with np.load(run / "eval" / "evaluations.npz") as log:
         steps = int(log["timesteps"][np.argmax(log["results"].mean(axis=1))])
     assert evaluate.model_files(run, "best")[0].name == f"ckpt_{steps}_steps.zip"
+    # a run still training (no model.zip yet) is played at its best validation checkpoint
+    training = tmp_path / "training" / "seed0"
+    shutil.copytree(run, training)
+    (training / "model.zip").unlink()
+    best_early = evaluate.main(
+        [str(training.parent), "--baseline", str(baseline), "--out", str(tmp_path / "e2"), "--model", "best"]
+    )
+    played_best = json.loads((out / "runs" / "ppo_seed0_best.json").read_text())["episodes"]
+    assert best_early["rows"][-1]["return"]["mean"] == pytest.approx(
+        np.mean([e["return"] for e in played_best]), rel=1e-12
+    )
+    with pytest.raises(SystemExit) as unfinished:
+        evaluate.main([str(training.parent), "--baseline", str(baseline), "--out", str(tmp_path / "e3")])
+    assert unfinished.value.code == 2 and "no model.zip" in capsys.readouterr().err
 
     # Sampled actions: reproducible (torch seeded per start state), different from the mean's
     sampled = [tmp_path / "s1", tmp_path / "s2"]
