@@ -4,7 +4,10 @@ checkpoints that keep only the newest replay buffer, and a stop on request (SIGT
 from __future__ import annotations
 
 import math
+import sys
+import time
 from pathlib import Path
+from typing import TextIO
 
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
@@ -87,4 +90,44 @@ class PhysicsLoggerCallback(BaseCallback):
             for key in ("reward_viscosity", "reward_energy", "sim_steps"):
                 if key in info:
                     self.logger.record_mean(f"physics/{key}", float(info[key]))
+        return True
+
+
+class ProgressLineCallback(BaseCallback):
+    """A line on ``stream`` every ``every`` environment steps: the run, its steps against the total, the
+    rate in environment steps per second since this process started it, the time left at that rate, and
+    the mean return of the last 10 finished training episodes. For runs without a progress bar (several
+    seeds, ``--no-progress``, a log file), so that a long unattended study shows where it is."""
+
+    def __init__(self, name: str, total: int, every: int, stream: TextIO | None = None) -> None:
+        super().__init__(0)
+        if every < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+        self.name, self.total, self.every = name, total, every
+        self.stream = stream
+        self._start_time = 0.0
+        self._start_steps = 0
+        self._next = 0
+
+    def _on_training_start(self) -> None:
+        self._start_time = time.perf_counter()
+        self._start_steps = int(self.model.num_timesteps)
+        self._next = (self._start_steps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        steps = int(self.model.num_timesteps)
+        if steps < self._next:
+            return True
+        self._next = (steps // self.every + 1) * self.every
+        elapsed = time.perf_counter() - self._start_time
+        rate = (steps - self._start_steps) / elapsed if elapsed > 0 else math.nan
+        left = (self.total - steps) / rate / 60 if rate > 0 else math.nan
+        episodes = [float(e["r"]) for e in list(getattr(self.model, "ep_info_buffer", []))[-10:]]
+        recent = f"{sum(episodes) / len(episodes):.1f}" if episodes else "none yet"
+        print(
+            f"{self.name}: {steps}/{self.total} steps, {rate:.2f} steps/s, {left:.0f} min left; "
+            f"mean return of the last {len(episodes)} training episodes: {recent}",
+            file=self.stream or sys.stderr,
+            flush=True,
+        )
         return True

@@ -322,7 +322,12 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from agents.callbacks import NewestBufferCheckpointCallback, PhysicsLoggerCallback, StopOnSignalCallback
+    from agents.callbacks import (
+        NewestBufferCheckpointCallback,
+        PhysicsLoggerCallback,
+        ProgressLineCallback,
+        StopOnSignalCallback,
+    )
     from agents.rollout import make_env, make_monitored_env
 
     torch.set_num_threads(1)
@@ -425,6 +430,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             ),
             PhysicsLoggerCallback(),
             stopper,
+            # without a progress bar, a line per checkpoint on stderr (a study's log shows where it is)
+            *([] if progress else [ProgressLineCallback(f"{algo} seed {seed}", total, checkpoint_freq)]),
         ]
     )
     if latest is not None:

@@ -571,3 +571,15 @@ def test_validation_baseline_lines_are_its_no_field_and_best_constant_returns(
     with pytest.raises(SystemExit) as wrong_env:
         evaluate.validation_lines(other, pareto, reward)
     assert wrong_env.value.code == 2 and "differs from --baseline" in capsys.readouterr().err
+
+
+def test_training_without_a_progress_bar_prints_a_line_per_checkpoint(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--no-progress: one line per checkpoint_freq steps on stderr (steps against the total, rate, time
+    left, recent training return), so that a study's log shows where it is."""
+    argv = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress", "--algo", "ppo"]
+    train.main([*argv, "--seed", "0", "--out", str(tmp_path / "ppo"), "--hyperparams", *SHORT])
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("ppo seed 0: ")]
+    assert [line.split(",")[0] for line in lines] == ["ppo seed 0: 32/64 steps", "ppo seed 0: 64/64 steps"]
+    assert all("steps/s" in line and "min left" in line for line in lines)
