@@ -1,0 +1,57 @@
+"""scripts/pulse_train.py: protocol parsing, bad arguments, and a short run whose field energies are known."""
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import pytest
+
+_spec = importlib.util.spec_from_file_location(
+    "pulse_train", Path(__file__).parents[1] / "scripts" / "pulse_train.py"
+)
+pulse_train = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(pulse_train)
+
+
+def test_protocols_parse() -> None:
+    assert pulse_train.parse_protocol("steady:0.2") == [0.2]
+    assert pulse_train.parse_protocol("steady:off") == [math.inf]
+    assert pulse_train.parse_protocol("pulse:0.1:off") == [0.1, math.inf]
+    for bad in ("steady:0.1:0.2", "pulse:0.1", "ramp:1", "steady:-1", "steady:0"):
+        with pytest.raises(ValueError, match="steady:MN or pulse:MN1:MN2"):
+            pulse_train.parse_protocol(bad)
+
+
+@pytest.mark.parametrize(
+    "flags", [["--rate", "0"], ["--rate", "nan"], ["--states", "1"], ["--skip", "4", "--intervals", "4"]]
+)
+def test_bad_arguments_exit_2(tmp_path: Path, flags: list[str]) -> None:
+    with pytest.raises(SystemExit) as stop:
+        pulse_train.main(["--out", str(tmp_path), *flags])
+    assert stop.value.code == 2
+
+
+def test_pulse_alternates_and_energy_is_the_field_energy(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    argv = [
+        "--out",
+        str(tmp_path),
+        "--env",
+        "dipenv/ThickeningControlTiny-v0",
+        "--rate",
+        "2",
+        "--states",
+        "2",
+    ]
+    argv += ["--intervals", "2", "--skip", "0", "--protocols", "steady:off,pulse:0.1:off"]
+    pulse_train.main(argv)
+    episodes = json.loads((tmp_path / "episodes.json").read_text())
+    # eps E0^2 = 1/Mn_ref in eta gammadot_ref: 10 with Mn_ref = 0.1, then the field off
+    assert episodes["pulse:0.1:off/0"]["energy"] == pytest.approx([10.0, 0.0], rel=1e-9)
+    assert episodes["pulse:0.1:off/1"]["mason_number"][1] == "inf"
+    assert episodes["steady:off/0"]["energy"] == [0.0, 0.0]
+    assert "| pulse:0.1:off |" in capsys.readouterr().out
+    pulse_train.main(argv)  # a rerun reuses every stored episode
+    assert json.loads((tmp_path / "episodes.json").read_text()) == episodes
