@@ -5,7 +5,7 @@
         [--tune-episodes N] [--repeats K] [--tune-repeats K] [--env-kwargs JSON] [--workers W]
         [--scheduler ADDRESS]
 
-Two controllers, each a policy ``obs -> action`` over the raw observation of a
+Three controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
 not matter):
 
@@ -21,8 +21,13 @@ not matter):
   ``u`` is saturated in the direction of the error (anti-windup; Åström & Murray, *Feedback Systems*,
   2008, §10.4).
 
-Both saturate at the env's field range (``[Mn_min, Mn_max]`` or off): that is the actuator's limit, not a
-clamp of the user's input.
+* :class:`RatePulseController` ("pulse"): a hand-built version of what the trained PPO policies do
+  (``results/thickening_control/v2/README.md``): at observed rates at or above ``rate_on`` the field
+  alternates every interval between the strongest field (``Mn_min``) and off; below, it holds
+  ``Mn_ref = mason_steady``. Like the feed-forward it reads the rate, so it runs on ``ThickeningControl``.
+
+The feed-forward and PI controllers saturate at the env's field range (``[Mn_min, Mn_max]`` or off): that
+is the actuator's limit, not a clamp of the user's input.
 
 The command runs every point of ``--grid`` (the Cartesian product of the listed values; defaults per
 controller in :data:`DEFAULT_GRIDS`) on the first ``--tune-episodes`` states of ``--tune-split``, picks
@@ -68,15 +73,18 @@ from agents.usage import (
 
 PROG = "python -m agents.controllers"
 
-CONTROLLERS = ("feedforward", "pi")
+CONTROLLERS = ("feedforward", "pi", "pulse")
 
 DEFAULT_GRIDS: dict[str, dict[str, list[float]]] = {
     "feedforward": {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]},
     "pi": {"kp": [2.0, 6.0], "ki": [0.5, 2.0]},
+    "pulse": {"rate_on": [1.5, 2.5], "mason_steady": [0.5, 1.0]},
 }
 """Grids searched on the validation split when ``--grid`` is not given. ``mason_star`` spans the paper's
-thickening window (Mn 0.25–4, Fig. 3b). The PI gains are in action units per decade of error; its
-setpoints default to :data:`DEFAULT_SETPOINT_FRACTIONS` of the env's cap."""
+thickening window (Mn 0.25–4, Fig. 3b). The pulse's ``rate_on`` brackets the rate 2 above which the
+trained PPO policies pulse (``results/thickening_control/v2/README.md``), ``mason_steady`` the best
+constant field (0.5) and the feed-forward's tuned ``Mn*`` (1). The PI gains are in action units per
+decade of error; its setpoints default to :data:`DEFAULT_SETPOINT_FRACTIONS` of the env's cap."""
 
 DEFAULT_SETPOINT_FRACTIONS = (0.7, 0.85, 1.0)
 """Default PI setpoints as fractions of the env's ``eta_cap`` (the cap depends on the box: 6.5 at N = 64,
@@ -185,13 +193,69 @@ class PIController:
         return np.array([min(1.0, max(-1.0, u))], dtype=np.float32)
 
 
-def make_controller(kind: str, params: dict[str, float]) -> FeedForwardController | PIController:
+@dataclass
+class RatePulseController:
+    """Pulse the field at high shear rates, hold a steady one at low rates.
+
+    At an observed rate (the rate at the end of the previous interval) ``>= rate_on`` the field alternates
+    every interval between the strongest field (action ``u = 1``, ``Mn_ref = Mn_min``) and off, starting
+    with the strongest; below ``rate_on`` it holds ``Mn_ref = mason_steady`` (saturated at the field range)
+    and the next pulse starts with the strongest field again.
+
+    Attributes:
+        rate_on: shear rate (``gammadot_ref``) from which the field pulses, > 0.
+        mason_steady: ``Mn_ref`` held below ``rate_on``, > 0 (``inf``: field off).
+    """
+
+    rate_on: float
+    mason_steady: float
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.rate_on) and self.rate_on > 0.0):
+            raise ValueError(f"rate_on must be finite and > 0, got {self.rate_on!r}")
+        if not (self.mason_steady > 0.0):  # inf allowed: field off
+            raise ValueError(f"mason_steady must be > 0 (inf: off), got {self.mason_steady!r}")
+        self._rate_index = -1
+        self._mapping: Any = None
+        self._pulse_on = True
+
+    def bind(self, env: Any) -> RatePulseController:
+        """Find the rate in ``env``'s observation; ``ValueError`` if the env does not observe it."""
+        unwrapped = env.unwrapped
+        self._rate_index = _index(unwrapped, "log10_shear_rate")
+        self._mapping = unwrapped.mapping
+        return self
+
+    def reset(self) -> None:
+        self._pulse_on = True
+
+    def __call__(self, obs: np.ndarray) -> np.ndarray:
+        mapping = self._mapping
+        if mapping is None:
+            raise RuntimeError("bind(env) the controller before use")
+        rate = 10.0 ** float(np.asarray(obs).reshape(-1)[self._rate_index])
+        if rate >= self.rate_on:
+            u = 1.0 if self._pulse_on else -1.0
+            self._pulse_on = not self._pulse_on
+            return np.array([u], dtype=np.float32)
+        self._pulse_on = True
+        mason = min(max(self.mason_steady, mapping.mason_min), mapping.mason_max)
+        if math.isinf(self.mason_steady):
+            mason = math.inf
+        return np.array([mapping.action_for(mason)], dtype=np.float32)
+
+
+def make_controller(
+    kind: str, params: dict[str, float]
+) -> FeedForwardController | PIController | RatePulseController:
     """A controller of ``kind`` (one of :data:`CONTROLLERS`) with ``params``; ``ValueError`` naming a bad
     kind or parameter."""
     if kind == "feedforward":
         return FeedForwardController(**params)
     if kind == "pi":
         return PIController(**params)
+    if kind == "pulse":
+        return RatePulseController(**params)
     raise ValueError(f"controller must be one of {', '.join(CONTROLLERS)}, got {kind!r}")
 
 
@@ -442,6 +506,7 @@ __all__ = [
     "DEFAULT_SETPOINT_FRACTIONS",
     "FeedForwardController",
     "PIController",
+    "RatePulseController",
     "make_controller",
     "main",
     "parse_grid",

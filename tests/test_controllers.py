@@ -391,3 +391,48 @@ def test_a_constant_field_makes_the_same_episode_in_either_action_map() -> None:
     assert physics_difference(v2, {}, v1, {}) == []
     assert physics_difference("dipenv/ThickeningControlStressOnly-v2", {}, v1, {}) == []
     assert "simulation" in physics_difference(v2, {}, v0, {})
+
+
+def test_pulse_alternates_above_the_rate_and_holds_below() -> None:
+    """Over a schedule that is fast (rate 3), then slow (rate 0.5), then fast again: strongest field and off
+    alternate while the rate read is >= rate_on (each pulse starting with the strongest field), and the
+    steady Mn_ref is held below it. info's Mn_ref must equal the map of each action exactly (off: inf; the
+    strongest field: Mn_min; the steady field to float32 precision of the action, 1e-6 relative)."""
+    env = gym.make(TINY, progress=False)
+    mason_min = env.unwrapped.mapping.mason_min
+    controller = controllers.RatePulseController(rate_on=2.0, mason_steady=0.5).bind(env)
+    schedule = {"times": [0.0, 0.06, 0.06, 0.12, 0.12, 0.2], "rates": [3.0, 3.0, 0.5, 0.5, 3.0, 3.0]}
+    obs, info = env.reset(seed=0, options={"split": "test", "index": 0, "schedule": schedule})
+    controller.reset()
+    masons, read = [], []  # read: the rate the controller saw (the previous interval's end rate)
+    rate_seen = info["shear_rate"]
+    for _ in range(10):
+        read.append(rate_seen)
+        obs, _, terminated, truncated, info = env.step(controller(obs))
+        masons.append(info["mason_number"])
+        rate_seen = info["shear_rate_end"]
+        if terminated or truncated:
+            break
+    # the rates read: fast x4 (the 4th interval reads the 3rd's end rate), slow x3, fast x3
+    assert read == [3.0, 3.0, 3.0, 3.0, 0.5, 0.5, 0.5, 3.0, 3.0, 3.0]
+    expected = [mason_min, math.inf, mason_min, math.inf, 0.5, 0.5, 0.5, mason_min, math.inf, mason_min]
+    assert len(masons) == 10
+    for got, want in zip(masons, expected, strict=True):
+        if math.isinf(want):
+            assert math.isinf(got)
+        else:
+            assert got == pytest.approx(want, rel=1e-6)
+    env.close()
+
+
+def test_pulse_checks_its_parameters_and_needs_the_rate() -> None:
+    with pytest.raises(ValueError, match="rate_on"):
+        controllers.RatePulseController(rate_on=0.0, mason_steady=0.5)
+    with pytest.raises(ValueError, match="mason_steady"):
+        controllers.RatePulseController(rate_on=2.0, mason_steady=-1.0)
+    env = gym.make("dipenv/ThickeningControlStressOnly-v0", **dipenv.THICKENING_TINY_KWARGS, progress=False)
+    with pytest.raises(ValueError, match="log10_shear_rate"):
+        controllers.RatePulseController(rate_on=2.0, mason_steady=0.5).bind(env)
+    env.close()
+    assert controllers.make_controller("pulse", {"rate_on": 2.0, "mason_steady": 1.0}).rate_on == 2.0
+    assert parse_grid("pulse", ["rate_on=3"], eta_cap=7.7) == {"rate_on": [3.0], "mason_steady": [0.5, 1.0]}
