@@ -2,16 +2,22 @@
 field, and how often consecutive intervals switch between the strongest field and a weak one or none.
 
     python scripts/field_pulsing.py RUN_JSON [RUN_JSON ...] [--strongest 0.1] [--weak 5] [--high-rate 2]
-        [--low-rate 1]
+        [--low-rate 1] [--rate-bins 0.2,0.5,1,2,3,5]
 
-``RUN_JSON`` is a per-run file of an ``agents.evaluate`` folder (``DIR/runs/<policy>_seed<k>.json``): its
-episodes' interval traces (``mason_number`` = ``Mn_ref`` per interval, ``"inf"`` for no field, and the
-interval-mean ``shear_rate``). An interval is *strongest* if ``Mn_ref <= strongest * (1 + 1e-6)`` (the
-action ``u = 1`` of ``ThickeningControl-v2`` is ``Mn_ref = 0.1``) and *weak* if ``Mn_ref >= weak`` or the
-field is off. Printed per file (Markdown on stdout), each a mean over its episodes of the per-episode
-fractions: strongest among the intervals above ``--high-rate`` and below ``--low-rate``, and the fraction
-of consecutive pairs whose second interval is above ``--high-rate`` that switch between strongest and weak
-(either way). A constant field gives 0 switches; a field that alternates every interval gives 1.
+``RUN_JSON`` is a per-run file of an ``agents.evaluate`` folder (``DIR/runs/<policy>_seed<k>.json``) or a
+controller's or constant field's point (``DIR/points/<label>.json``): its episodes' interval traces
+(``mason_number`` = ``Mn_ref`` per interval, ``"inf"`` for no field, and the interval-mean ``shear_rate``). An
+interval is *strongest* if ``Mn_ref <= strongest * (1 + 1e-6)`` (the action ``u = 1`` of
+``ThickeningControl-v2`` is ``Mn_ref = 0.1``) and *weak* if ``Mn_ref >= weak`` or the field is off. Printed
+per file (Markdown on stdout), each a mean over its episodes of the per-episode fractions: strongest among the
+intervals above ``--high-rate`` and below ``--low-rate``, and the fraction of consecutive pairs whose second
+interval is above ``--high-rate`` that switch between strongest and weak (either way). A constant field gives
+0 switches; a field that alternates every interval gives 1.
+
+A second table bins every interval of a file's episodes by its mean shear rate (``--rate-bins``, edges in
+``gammadot_ref``) and gives, per bin, the mean field energy ``eps E0^2 = 1/Mn_ref`` (``eta gammadot_ref``),
+the mean excess ``max(0, eta_r - eta_cap)`` and the mean reward per interval: where a controller spends its
+field and where it pays for thickening. Intervals outside the edges are left out.
 """
 
 from __future__ import annotations
@@ -42,6 +48,24 @@ def episode_fractions(
     return share(is_strong, high), share(is_strong, low), share(switch, high[1:])
 
 
+def rate_bin_means(traces: list[dict], edges: np.ndarray) -> np.ndarray:
+    """(B, 4) per rate bin ``[edges[b], edges[b + 1])``: share of all intervals, mean field energy, mean
+    excess ``max(0, eta_r - eta_cap)`` and mean reward; NaN means for a bin with no interval."""
+    rate = np.concatenate([np.asarray(t["shear_rate"], dtype=float) for t in traces])
+    energy = np.concatenate([np.asarray(t["field_energy"], dtype=float) for t in traces])
+    excess = np.concatenate(
+        [np.maximum(0.0, np.asarray(t["eta_r"], dtype=float) - np.asarray(t["eta_cap"])) for t in traces]
+    )
+    reward = np.concatenate([np.asarray(t["reward"], dtype=float) for t in traces])
+    out = np.full((len(edges) - 1, 4), math.nan)
+    for b in range(len(edges) - 1):
+        inside = (rate >= edges[b]) & (rate < edges[b + 1])
+        out[b, 0] = inside.mean()
+        if inside.any():
+            out[b, 1:] = energy[inside].mean(), excess[inside].mean(), reward[inside].mean()
+    return out
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path)
@@ -49,7 +73,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--weak", type=float, default=5.0, help="Mn_ref at or above which a field is weak")
     parser.add_argument("--high-rate", type=float, default=2.0)
     parser.add_argument("--low-rate", type=float, default=1.0)
+    parser.add_argument(
+        "--rate-bins", default="0.2,0.5,1,2,3,5", help="comma-separated increasing edges of the rate bins"
+    )
     args = parser.parse_args(argv)
+    try:
+        edges = np.array([float(x) for x in args.rate_bins.split(",")])
+    except ValueError:
+        parser.error(f"--rate-bins must be comma-separated numbers, got {args.rate_bins!r}")
+    if len(edges) < 2 or not (np.isfinite(edges).all() and (edges >= 0).all() and (np.diff(edges) > 0).all()):
+        parser.error(
+            f"--rate-bins must be at least two finite, increasing edges >= 0, got {args.rate_bins!r}"
+        )
     for name in ("strongest", "weak", "high_rate", "low_rate"):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
@@ -59,8 +94,10 @@ def main(argv: list[str] | None = None) -> None:
         f"{args.low_rate:g} | strongest <-> weak switches per interval, rate > {args.high_rate:g} |"
     )
     print("|---|---|---|---|---|")
+    traces = {}
     for path in args.runs:
         episodes = json.loads(path.read_text())["episodes"]
+        traces[path.name] = [e["trace"] for e in episodes]
         rows = np.array(
             [
                 episode_fractions(e["trace"], args.strongest, args.weak, args.high_rate, args.low_rate)
@@ -69,6 +106,19 @@ def main(argv: list[str] | None = None) -> None:
         )
         means = [float(np.nanmean(column)) if np.isfinite(column).any() else math.nan for column in rows.T]
         print(f"| {path.name} | {len(episodes)} | {means[0]:.2f} | {means[1]:.2f} | {means[2]:.2f} |")
+    labels = [f"{lo:g}-{hi:g}" for lo, hi in zip(edges[:-1], edges[1:], strict=True)]
+    print(
+        "\nPer shear-rate bin: field energy 1/Mn_ref / excess eta_r over the cap / reward, means per interval"
+    )
+    print("(the first row: each bin's share of the intervals)\n")
+    print("| run | " + " | ".join(labels) + " |")
+    print("|---|" + "---|" * len(labels))
+    for name, file_traces in traces.items():
+        table = rate_bin_means(file_traces, edges)
+        if name == next(iter(traces)):
+            print("| share | " + " | ".join(f"{v:.2f}" for v in table[:, 0]) + " |")
+        cells = [f"{e:.2f} / {x:.2f} / {r:.2f}" for _, e, x, r in table]
+        print(f"| {name} | " + " | ".join(cells) + " |")
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ import importlib.util
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 _spec = importlib.util.spec_from_file_location(
@@ -38,3 +39,26 @@ def test_rates_split_the_shares() -> None:
     assert strong_low == 0.5
     assert strong_high == 0.0
     assert switches == 0.0  # pairs ending above rate 2: (1.0 -> 5.0) and (5.0 -> off), neither strongest
+
+
+def test_rate_bins_average_within_each_bin() -> None:
+    # two episodes: rates 0.5 (energy 2, eta_r 8 -> excess 0.3) and 3 (energy 0 and 10, eta_r 7 -> 0)
+    first = {
+        "shear_rate": [0.5, 3.0],
+        "field_energy": [2.0, 0.0],
+        "eta_r": [8.0, 7.0],
+        "eta_cap": 7.7,
+        "reward": [-0.9, 0.0],
+    }
+    second = {
+        "shear_rate": [3.0, 9.0],
+        "field_energy": [10.0, 1.0],
+        "eta_r": [7.0, 9.0],
+        "eta_cap": 7.7,
+        "reward": [-3.0, -1.0],
+    }
+    table = field_pulsing.rate_bin_means([first, second], np.array([0.2, 1.0, 5.0, 6.0]))
+    assert table[:, 0] == pytest.approx([0.25, 0.5, 0.0])  # the rate-9 interval is outside the edges
+    assert table[0, 1:] == pytest.approx([2.0, 0.3, -0.9])
+    assert table[1, 1:] == pytest.approx([5.0, 0.0, -1.5])
+    assert np.isnan(table[2, 1:]).all()
