@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The final evaluation of the thickening-control study (issue 21), after scripts/thickening_training.sh:
+# every trained run on the 16 test schedules in the reference physics (the paper's 0.4% displacement
+# bound), against the constant fields and the tuned controllers with 4 realisations per state; then SAC's
+# sampled actions, the policy SAC optimises (docs/thickening_control.md#status). Both commands reuse
+# every episode already stored in their folders (rerun to resume after an interruption; a run's 16
+# episodes are stored together when they are done).
+#
+#     scripts/thickening_evaluation.sh [WORKERS]   # default 2; writes results/thickening_control/v2/evaluation_final{,_sac_sampled}
+#
+# The interim evaluation's PPO seeds 0-1 (evaluation_ppo_interim/runs) are copied in first: their identity
+# (model file and its modification time, library key, play arguments) is what the final evaluation asks,
+# so they are reused instead of played again (in a fresh checkout the modification times differ and they
+# are played again). Uses the project's interpreter (.venv/bin/python, or $PYTHON). On the 2-core
+# machine: about 13 runs x 16 episodes plus SAC's 5 x 16 sampled, ~1 min each, so 2-3 hours on two workers.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+WORKERS=${1:-2}
+PY=${PYTHON:-.venv/bin/python}
+V1=results/thickening_control/v1
+V2=results/thickening_control/v2
+REFERENCE='{"simulation_overrides": {}}'
+# agents.evaluate plays the finished runs it finds; the final table needs all of them (ALLOW_PARTIAL=1
+# evaluates what is there, e.g. for an interim table).
+missing=()
+for row in ppo sac ppo_stress_only_history; do
+    for seed in 0 1 2 3 4; do
+        [ -e "$V2/rl/$row/seed$seed/result.json" ] || missing+=("$row/seed$seed")
+    done
+done
+if [ ${#missing[@]} -gt 0 ] && [ "${ALLOW_PARTIAL:-0}" != 1 ]; then
+    echo "thickening_evaluation.sh: runs not finished: ${missing[*]} (run scripts/thickening_training.sh," \
+        "or set ALLOW_PARTIAL=1)" >&2
+    exit 2
+fi
+mkdir -p "$V2/evaluation_final/runs"
+for seed in 0 1; do
+    [ -e "$V2/evaluation_final/runs/ppo_seed$seed.json" ] ||
+        cp "$V2/evaluation_ppo_interim/runs/ppo_seed$seed.json" "$V2/evaluation_final/runs/"
+done
+"$PY" -m agents.evaluate "$V2/rl/ppo" "$V2/rl/sac" "$V2/rl/ppo_stress_only_history" \
+    --play-kwargs "$REFERENCE" --baseline "$V1/open_loop" \
+    --controllers "$V2/feedforward" "$V2/pi" "$V2/pi_stress_only" "$V2/pulse" \
+    --repeats 4 --policy-repeats 1 --validation-baseline "$V1/open_loop_validation" \
+    --workers "$WORKERS" --out "$V2/evaluation_final"
+"$PY" -m agents.evaluate "$V2/rl/sac" --actions sampled --play-kwargs "$REFERENCE" \
+    --baseline "$V1/open_loop" --controllers "$V2/pulse" \
+    --repeats 4 --policy-repeats 1 --validation-baseline "$V1/open_loop_validation" \
+    --workers "$WORKERS" --out "$V2/evaluation_final_sac_sampled"
