@@ -14,10 +14,14 @@ intervals, MN2 on odd ones). The time average covers every instant, so a pulse t
 mean energy does so through the suspension's response (the structure outliving the field), not by how it
 is sampled.
 
-Writes ``DIR/episodes.json`` (per protocol and state: per-interval eta_r, energy, Mn_ref), reused on rerun
-(resumable, keyed by protocol and state), ``DIR/command.txt``, and a Markdown table on stdout: per
+Writes ``DIR/episodes.json`` (per protocol and state: per-interval eta_r, energy, Mn_ref, eta_r split by
+stress contribution, and the microstructure of the observation at each interval's end), reused on rerun
+(resumable, keyed by protocol and state), ``DIR/command.txt``, and Markdown tables on stdout: per
 protocol the means over states and, for each protocol after the first, the paired difference to the first
-(mean ± standard error over states).
+(mean ± standard error over states); then, per protocol and phase (a pulse's two fields apart), eta_r by
+contribution (hydrodynamic: solvent, Stokes drag and lubrication; repulsion; field: ICEP and DEP) and the
+end-of-interval contact number and fabric ``A_yy - 1/3`` (alignment along the field, ``y``). Episodes
+stored before the contributions were recorded lack them and are played again.
 """
 
 from __future__ import annotations
@@ -45,16 +49,29 @@ def parse_protocol(text: str) -> list[float]:
     raise ValueError(f"a protocol is steady:MN or pulse:MN1:MN2 with Mn_ref > 0 or 'off', got {text!r}")
 
 
+MICROSTRUCTURE = ("contact_number", "fabric_yy", "fabric_xy", "g_pole", "g_equator")
+"""Observation features recorded per interval (the configuration at the interval's end)."""
+
+GROUPS = {
+    "hydrodynamic": ("solvent", "stokes_drag", "lubrication"),
+    "repulsion": ("repulsion",),
+    "field": ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet"),
+}
+"""Stress contributions (``sim.STRESS_CONTRIBUTIONS``) summed for the phase table."""
+
+
 def play(env: gym.Env, masons: list[float], index: int, rate: float, intervals: int) -> dict[str, list]:
     unwrapped: Any = env.unwrapped  # a ThickeningControlEnv
     mapping = unwrapped.mapping
+    names = [f.name for f in unwrapped.frame_features()]
     duration = unwrapped.episode_duration + 1.0
     hold = {"times": [0.0, duration], "rates": [rate, rate]}
     env.reset(seed=0, options={"split": "test", "index": index, "schedule": hold})
-    out: dict[str, list] = {"eta_r": [], "excess": [], "energy": [], "mason_number": []}
+    out: dict[str, list] = {"eta_r": [], "excess": [], "energy": [], "mason_number": [], "contributions": []}
+    out.update({name: [] for name in MICROSTRUCTURE})
     for k in range(intervals):
         action = np.array([mapping.action_for(masons[k % len(masons)])], dtype=np.float32)
-        _, _, terminated, truncated, info = env.step(action)
+        observation, _, terminated, truncated, info = env.step(action)
         if info.get("simulation_failed"):
             raise RuntimeError(f"simulation failed on state {index}, interval {k}")
         out["eta_r"].append(float(info["eta_r"]))
@@ -62,6 +79,9 @@ def play(env: gym.Env, masons: list[float], index: int, rate: float, intervals: 
         out["energy"].append(float(info["field_energy"]))
         m = float(info["mason_number"])
         out["mason_number"].append(m if math.isfinite(m) else "inf")
+        out["contributions"].append(info["eta_r_contributions"])
+        for name in MICROSTRUCTURE:
+            out[name].append(float(observation[names.index(name)]))
         if terminated or truncated:
             break
     return out
@@ -96,7 +116,7 @@ def main(argv: list[str] | None = None) -> None:
     for name, masons in protocols.items():
         for index in range(args.states):
             key = f"{name}/{index}"
-            if key in episodes and episodes[key]["setup"] == setup:
+            if key in episodes and episodes[key]["setup"] == setup and "contributions" in episodes[key]:
                 continue
             episodes[key] = {"setup": setup, **play(env, masons, index, args.rate, args.intervals)}
             tmp = store.with_suffix(".tmp")
@@ -127,6 +147,35 @@ def main(argv: list[str] | None = None) -> None:
             row + f" {d_eta.mean():+.3f} ± {d_eta.std(ddof=1) / se:.3f} |"
             f" {d_excess.mean():+.3f} ± {d_excess.std(ddof=1) / se:.3f} |"
         )
+    columns = ["eta_r", *GROUPS, *MICROSTRUCTURE]
+    print(
+        "\nBy phase (a pulse's two fields apart; means over states of the intervals' means; eta_r by stress"
+        " contribution; microstructure at the intervals' ends):\n"
+    )
+    print("| protocol | phase (Mn_ref) | " + " | ".join(columns) + " |")
+    print("|---|---|" + "---|" * len(columns))
+    for name, masons in protocols.items():
+        per_state = [phase_rows(episodes[f"{name}/{i}"], len(masons), args.skip) for i in range(args.states)]
+        for phase, mason in enumerate(masons):
+            cells = [np.mean([rows[phase][c] for rows in per_state]) for c in columns]
+            label = "off" if math.isinf(mason) else f"{mason:g}"
+            print(f"| {name} | {label} | " + " | ".join(f"{v:.3f}" for v in cells) + " |")
+
+
+def phase_rows(episode: dict, period: int, skip: int) -> list[dict[str, float]]:
+    """Per phase ``k`` of a protocol of ``period`` fields (1: steady; 2: a pulse's first and second field):
+    means over the intervals ``i >= skip`` with ``i % period == k`` of eta_r, its contribution groups
+    (:data:`GROUPS`) and the recorded microstructure."""
+    rows = []
+    for phase in range(period):
+        picked = [i for i in range(skip, len(episode["eta_r"])) if i % period == phase]
+        row = {"eta_r": float(np.mean([episode["eta_r"][i] for i in picked]))}
+        for group, names in GROUPS.items():
+            row[group] = float(np.mean([sum(episode["contributions"][i][n] for n in names) for i in picked]))
+        for name in MICROSTRUCTURE:
+            row[name] = float(np.mean([episode[name][i] for i in picked]))
+        rows.append(row)
+    return rows
 
 
 if __name__ == "__main__":

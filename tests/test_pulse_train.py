@@ -52,6 +52,33 @@ def test_pulse_alternates_and_energy_is_the_field_energy(
     assert episodes["pulse:0.1:off/0"]["energy"] == pytest.approx([10.0, 0.0], rel=1e-9)
     assert episodes["pulse:0.1:off/1"]["mason_number"][1] == "inf"
     assert episodes["steady:off/0"]["energy"] == [0.0, 0.0]
-    assert "| pulse:0.1:off |" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "| pulse:0.1:off |" in out
+    # the phase table: the field's stress is there in the field-on phase only, and the groups sum to eta_r
+    assert "| pulse:0.1:off | off |" in out and "| pulse:0.1:off | 0.1 |" in out
+    on, off = pulse_train.phase_rows(episodes["pulse:0.1:off/0"], period=2, skip=0)
+    assert off["field"] == 0.0 and on["field"] != 0.0
+    for row in (on, off):
+        assert row["hydrodynamic"] + row["repulsion"] + row["field"] == pytest.approx(row["eta_r"], rel=1e-12)
+        assert 0.0 <= row["contact_number"] <= 13.0
     pulse_train.main(argv)  # a rerun reuses every stored episode
     assert json.loads((tmp_path / "episodes.json").read_text()) == episodes
+
+
+def test_phase_rows_split_a_pulse_by_phase() -> None:
+    parts = {name: 0.0 for name in ("solvent", "stokes_drag", "repulsion", "icep_pair", "dep_virial")}
+    episode = {
+        "eta_r": [9.0, 8.0, 7.0, 6.0, 5.0],
+        "contributions": [
+            {**parts, "solvent": 1.0, "lubrication": eta - 1.0 - f, "icep_isolated": f, "dep_stresslet": 0.0}
+            for eta, f in ((9.0, 1.0), (8.0, 0.0), (7.0, 3.0), (6.0, 0.0), (5.0, 5.0))
+        ],
+        **{name: [1.0, 2.0, 3.0, 4.0, 5.0] for name in pulse_train.MICROSTRUCTURE},
+    }
+    first, second = pulse_train.phase_rows(episode, period=2, skip=1)  # intervals 1..4
+    assert first["eta_r"] == 6.0 and second["eta_r"] == 7.0  # phase 0: intervals 2, 4; phase 1: 1, 3
+    assert first["field"] == 4.0 and second["field"] == 0.0
+    assert first["hydrodynamic"] == 2.0 and second["hydrodynamic"] == 7.0
+    assert first["contact_number"] == 4.0 and second["contact_number"] == 3.0
+    (steady,) = pulse_train.phase_rows(episode, period=1, skip=0)
+    assert steady["eta_r"] == 7.0 and steady["field"] == 1.8

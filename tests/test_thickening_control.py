@@ -108,8 +108,12 @@ def test_stress_only_observes_neither_rate_nor_viscosity(tmp_path) -> None:
 
 @pytest.mark.parametrize(
     "kwargs, message",
-    [({"rate_range": (0.0, 5.0)}, "rate_range"), ({"max_piece": 0.0}, "max_piece"),
-     ({"actuator_time_constant": 0.1}, "actuator_time_constant"), ({"target_viscosity": 6.0}, "eta_cap")],
+    [
+        ({"rate_range": (0.0, 5.0)}, "rate_range"),
+        ({"max_piece": 0.0}, "max_piece"),
+        ({"actuator_time_constant": 0.1}, "actuator_time_constant"),
+        ({"target_viscosity": 6.0}, "eta_cap"),
+    ],
 )
 def test_bad_arguments_are_refused_at_make(tmp_path, kwargs, message) -> None:
     with pytest.raises(ValueError, match=message):
@@ -122,3 +126,24 @@ def test_bad_schedule_option_is_refused(tiny) -> None:
     with pytest.raises(ValueError, match="rates must be > 0"):
         tiny.reset(options={"schedule": {"times": [0.0, 1.0], "rates": [1.0, 0.0]}})
     assert math.isfinite(tiny.reset()[1]["shear_rate"])
+
+
+def test_viscosity_contributions_sum_to_eta_r(tiny) -> None:
+    """``info["eta_r_contributions"]`` splits eta_r by stress contribution: the parts sum to eta_r (the
+    same time average of the same stresses, summed in another order: 1e-12), the solvent's part is
+    exactly the solvent viscosity (``Sigma_xy = eta gammadot``: 1 at any rate), and the field's parts
+    (ICEP, DEP) vanish without a field and not with one."""
+    field_parts = ("icep_isolated", "icep_pair", "dep_virial", "dep_stresslet")
+    tiny.reset(seed=0, options={"split": "test", "index": 0, "schedule": SCHEDULE})
+    for action, field_on in ((-1.0, False), (1.0, True)):
+        *_, info = tiny.step(np.array([action], dtype=np.float32))
+        parts = info["eta_r_contributions"]
+        assert tuple(parts) == sim.STRESS_CONTRIBUTIONS
+        assert sum(parts.values()) == pytest.approx(info["eta_r"], rel=1e-12)
+        assert parts["solvent"] == pytest.approx(1.0, rel=1e-12)
+        assert parts["lubrication"] > 0.0  # the dense suspension's dissipation is mostly lubrication
+        field = [parts[name] for name in field_parts]
+        if field_on:
+            assert any(abs(x) > 1e-6 for x in field)
+        else:
+            assert field == [0.0] * len(field_parts)

@@ -464,6 +464,15 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             "min_gap": float(np.min(np.concatenate([p.min_gap for p in parts]))),
             "u_rms_dip": float(np.sqrt(np.dot(w, u_dip**2))),
             "u_rms_shear": float(np.sqrt(np.dot(w, u_shear**2))),
+            # eta_r split by stress contribution (they sum to eta_r up to rounding)
+            "eta_r_contributions": {
+                name: float(np.dot(w, contribution))
+                for name, contribution in zip(
+                    sim.STRESS_CONTRIBUTIONS,
+                    np.concatenate([p.stress[:, :, 0, 1] for p in parts]).T / rates,
+                    strict=True,
+                )
+            },
         }
         return values[0], values[1], values[2], values[3], extra
 
@@ -525,7 +534,10 @@ _DOC_COMMON = """
     ``reward_energy``, ``reward_failure`` and the raw physics: ``eta_r``, ``n1``, ``n2``,
     ``field_energy``, ``mason_number`` (in force at the end), ``mason_number_command``,
     ``field_direction``, ``u_rms_dip``, ``u_rms_shear``, ``sim_steps``,
-    ``solver_iterations``, ``overlap_sweeps``, ``min_gap``, ``strain`` (since the episode start).
+    ``solver_iterations``, ``overlap_sweeps``, ``min_gap``, ``strain`` (since the episode start), and
+    ``eta_r_contributions``: ``eta_r`` split by stress contribution (a dict over
+    :data:`sim.STRESS_CONTRIBUTIONS`: solvent, Stokes drag, lubrication, repulsion, the ICEP and DEP
+    parts; each the interval's time average of ``Sigma_xy^c / (eta gammadot)``, summing to ``eta_r``).
 
     ## Starting State
 
