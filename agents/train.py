@@ -27,6 +27,7 @@ cluster (``--scheduler``).
 from __future__ import annotations
 
 import argparse
+import copy
 import functools
 import json
 import math
@@ -295,9 +296,14 @@ def run_conflict(out: Path, identity: dict[str, Any]) -> str | None:
 
     def comparable(record: dict[str, Any]) -> dict[str, Any]:
         kept = {k: record.get(k) for k in identity}
-        kept["hyperparams"] = {
-            k: v for k, v in (record.get("hyperparams") or {}).items() if k != "n_timesteps"
-        }
+        hyperparams = {k: v for k, v in (record.get("hyperparams") or {}).items() if k != "n_timesteps"}
+        policy_kwargs = hyperparams.get("policy_kwargs")
+        if isinstance(policy_kwargs, dict) and policy_kwargs.get("use_sde") is False:
+            # Recorded by runs made before train_run deep-copied its hyperparameters: SAC wrote its
+            # default ``use_sde=False`` into the shared ``policy_kwargs``. False is the default, so the
+            # run is the same.
+            hyperparams["policy_kwargs"] = {k: v for k, v in policy_kwargs.items() if k != "use_sde"}
+        kept["hyperparams"] = hyperparams
         return kept
 
     if comparable(old) != comparable(identity):
@@ -334,7 +340,10 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     out = Path(payload["out"])
     env_id, algo, seed = payload["env_id"], payload["algo"], int(payload["seed"])
     env_kwargs = dict(payload["env_kwargs"])
-    hp = dict(payload["hyperparams"])
+    # A deep copy: SB3's off-policy algorithms write ``use_sde`` into the ``policy_kwargs`` they are
+    # given, and the seeds of one command share the payload's nested dicts, so without it every seed
+    # after the first recorded an extra key (see ``run_conflict``).
+    hp = copy.deepcopy(payload["hyperparams"])
     progress = bool(payload.get("progress", True))
     probe = make_env(env_id, {**env_kwargs, "progress": progress})  # settings now, start states below
     settings = probe.unwrapped.settings()  # type: ignore[attr-defined]

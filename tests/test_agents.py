@@ -252,8 +252,8 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
             *common,
             "--algo",
             "sac",
-            "--seed",
-            "0",
+            "--seeds",
+            "0-1",
             "--out",
             str(sac),
             "--hyperparams",
@@ -264,14 +264,20 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
         ]
     )
     # checkpoints at 32 and 64 steps; only the newest replay buffer is kept (agents.callbacks)
-    assert (sac / "model.zip").exists()
-    assert sorted(p.name for p in (sac / "checkpoints").glob("ckpt_*_steps.zip")) == [
+    assert (sac / "seed0" / "model.zip").exists()
+    assert sorted(p.name for p in (sac / "seed0" / "checkpoints").glob("ckpt_*_steps.zip")) == [
         "ckpt_32_steps.zip",
         "ckpt_64_steps.zip",
     ]
-    assert [p.name for p in (sac / "checkpoints").glob("ckpt_replay_buffer_*")] == [
+    assert [p.name for p in (sac / "seed0" / "checkpoints").glob("ckpt_replay_buffer_*")] == [
         "ckpt_replay_buffer_64_steps.pkl"
     ]
+    # Both seeds record the same hyperparameters: SAC writes use_sde into the policy_kwargs it is given,
+    # which leaked into the second seed's config.yml while the seeds shared one dict (then its rerun was
+    # refused as "a different run").
+    configs = [yaml.safe_load((sac / f"seed{s}" / "config.yml").read_text()) for s in (0, 1)]
+    assert configs[0]["hyperparams"] == configs[1]["hyperparams"]
+    assert "use_sde" not in configs[1]["hyperparams"]["policy_kwargs"]
 
     out = tmp_path / "evaluation"
     validation = tmp_path / "open_loop_validation"

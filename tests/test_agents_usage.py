@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 from agents import demo, open_loop, train
 from agents.train import HyperparameterError, check_hyperparameters, run_conflict
@@ -86,6 +87,24 @@ def test_a_failed_attempts_config_does_not_block_the_corrected_command(tmp_path:
     (tmp_path / "model.zip").write_bytes(b"")
     message = run_conflict(tmp_path, identity)
     assert message is not None and "holds a different run (config.yml differs in env_id" in message
+
+
+def test_a_run_recorded_with_sacs_injected_use_sde_false_is_the_same_run(tmp_path: Path) -> None:
+    """Runs made before train_run deep-copied its hyperparameters recorded ``use_sde: false`` (SB3's
+    default, written by SAC into shared ``policy_kwargs``); a rerun without it resumes them, while a
+    recorded ``use_sde: true`` is a different run."""
+    hp = {"n_timesteps": 10, "policy_kwargs": {"net_arch": [8]}}
+    identity = train.run_identity(ENV, {}, {}, "sac", 1, hp)
+    (tmp_path / "model.zip").write_bytes(b"")
+    for use_sde, conflict in ((False, False), (True, True)):
+        old = train.run_identity(
+            ENV, {}, {}, "sac", 1, {**hp, "policy_kwargs": {"net_arch": [8], "use_sde": use_sde}}
+        )
+        (tmp_path / "config.yml").write_text(yaml.safe_dump(old))
+        message = run_conflict(tmp_path, identity)
+        assert (message is not None) == conflict, message
+        if conflict:
+            assert "config.yml differs in hyperparams" in str(message)
 
 
 OPEN_LOOP_BAD = [
