@@ -31,7 +31,9 @@ names them, and the per-run results are played again when they change.
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
 their training seeds its samples. Each run plays one deterministic episode from each of the first
 ``--episodes`` start states of ``--split`` (by default the states of the baseline's points), with the
-observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun).
+observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun while
+the run, its model's and statistics' contents (SHA-256), the states and the play arguments are the same,
+so a fresh checkout of committed results replays nothing).
 ``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
 return (model selection on the validation states, testing on the held-out test states). The baseline's
 stored returns are rescored with the reward of the policies' env (that of the first run's config), and the
@@ -59,6 +61,7 @@ and in its training episodes with sampled actions (TensorBoard logs, or the
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import pickle
@@ -200,6 +203,18 @@ def find_runs(paths: list[Path], marker: str = "model.zip") -> dict[str, list[Pa
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))
     return groups
+
+
+def file_digest(path: Path) -> str | None:
+    """The SHA-256 of a file's contents (16 hex digits), or None when it does not exist: what identifies a
+    played model, since a checkout's modification times are not the training's."""
+    if not path.exists():
+        return None
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()[:16]
 
 
 def model_files(run: Path, which: str) -> tuple[Path, Path]:
@@ -1038,7 +1053,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         "split": split,
                         "indices": indices,
                         "model": str(model_file.resolve()),
-                        "model_mtime": model_file.stat().st_mtime_ns,
+                        "model_sha256": file_digest(model_file),
+                        "stats_sha256": file_digest(stats_file) if normalize else None,
                         "library_key": library_keys[run],  # start states regenerated: played again
                         **({"stochastic": True} if sampled else {}),
                         **({"repeats": policy_repeats} if policy_repeats > 1 else {}),

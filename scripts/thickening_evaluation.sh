@@ -3,16 +3,15 @@
 # every trained run on the 16 test schedules in the reference physics (the paper's 0.4% displacement
 # bound), against the constant fields and the tuned controllers with 4 realisations per state; then SAC's
 # sampled actions, the policy SAC optimises (docs/thickening_control.md#status). Both commands reuse
-# every episode already stored in their folders (rerun to resume after an interruption; a run's 16
-# episodes are stored together when they are done).
+# every episode already stored in their folders (rerun to resume after an interruption).
 #
 #     scripts/thickening_evaluation.sh [WORKERS]   # default 2; writes results/thickening_control/v2/evaluation_final{,_sac_sampled}
 #
-# The interim evaluation's PPO seeds 0-1 (evaluation_ppo_interim/runs) are copied in first: their identity
-# (model file and its modification time, library key, play arguments) is what the final evaluation asks,
-# so they are reused instead of played again (in a fresh checkout the modification times differ and they
-# are played again). Uses the project's interpreter (.venv/bin/python, or $PYTHON). On the 2-core
-# machine: about 13 runs x 16 episodes plus SAC's 5 x 16 sampled, ~1 min each, so 2-3 hours on two workers.
+# Each run's episodes are stored in DIR/runs/ when its 16 are done and reused while the model's contents
+# (SHA-256), the states and the play arguments are the same, so the evaluation runs in chunks across
+# sessions: stop it, commit both folders (runs/ included), rerun. Uses the project's interpreter
+# (.venv/bin/python, or $PYTHON). On the 2-core machine: 15 runs x 16 episodes plus SAC's 5 x 16 sampled,
+# ~1.3 min each (48 steps at ~0.6 steps/s), so 3-4 hours on two workers.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 WORKERS=${1:-2}
@@ -33,11 +32,6 @@ if [ ${#missing[@]} -gt 0 ] && [ "${ALLOW_PARTIAL:-0}" != 1 ]; then
         "or set ALLOW_PARTIAL=1)" >&2
     exit 2
 fi
-mkdir -p "$V2/evaluation_final/runs"
-for seed in 0 1; do
-    [ -e "$V2/evaluation_final/runs/ppo_seed$seed.json" ] ||
-        cp "$V2/evaluation_ppo_interim/runs/ppo_seed$seed.json" "$V2/evaluation_final/runs/"
-done
 "$PY" -m agents.evaluate "$V2/rl/ppo" "$V2/rl/sac" "$V2/rl/ppo_stress_only_history" \
     --play-kwargs "$REFERENCE" --baseline "$V1/open_loop" \
     --controllers "$V2/feedforward" "$V2/pi" "$V2/pi_stress_only" "$V2/pulse" \

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import os
 import shutil
 from pathlib import Path
 from typing import Any
@@ -333,6 +334,13 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
         assert verdict[key] == pytest.approx(expected[key]), key
     assert verdict["seeds_above"] == expected["seeds_above"]
     assert "front" in verdict["verdict"] and "ppo (ppo)" in (out / "verdict.md").read_text()
+    # Played runs are known by their model's contents, not its modification time: a fresh checkout of the
+    # committed results (new times, same files) replays nothing
+    stamp = (out / "runs" / "ppo_seed0.json").stat().st_mtime_ns
+    later = (run / "model.zip").stat().st_mtime_ns + 10**9
+    os.utime(run / "model.zip", ns=(later, later))
+    evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out)])
+    assert (out / "runs" / "ppo_seed0.json").stat().st_mtime_ns == stamp
 
     # --policy-repeats: the trained runs play each state twice (realisations 0, 1), the baseline once; the
     # row averages each seed's realisations first
