@@ -9,10 +9,11 @@ field protocols in the environment (its physics, start states and reward terms) 
 at ``--rate`` (a one-hold ``reset(options={"schedule": ...})``), from the first ``--states`` test start
 states, for ``--intervals`` intervals (a truncated episode), and averages each interval's time-averaged
 ``eta_r``, its excess over the env's cap and the field energy ``<1/Mn_ref>`` over the intervals after the
-first ``--skip``. Protocols: ``steady:MN`` (``Mn_ref = MN`` or ``off``) and ``pulse:MN1:MN2`` (MN1 on even
-intervals, MN2 on odd ones). The time average covers every instant, so a pulse that lowers it at equal
-mean energy does so through the suspension's response (the structure outliving the field), not by how it
-is sampled.
+first ``--skip``. Protocols: ``steady:MN`` (``Mn_ref = MN`` or ``off``) and ``pulse:MN1:MN2[:MN3...]`` (the
+fields in turn, one per interval, repeated: ``pulse:0.1:off`` alternates, ``pulse:0.1:0.1:off:off`` has
+twice the period, ``pulse:0.1:off:off`` a third of the time on). The time average covers every
+instant, so a pulse that lowers it at equal mean energy does so through the suspension's response (the
+structure outliving the field), not by how it is sampled.
 
 Writes ``DIR/episodes.json`` (per protocol and state: per-interval eta_r, energy, Mn_ref, eta_r split by
 stress contribution, and the microstructure of the observation at each interval's end), reused on rerun
@@ -40,13 +41,18 @@ import dipenv  # noqa: F401  (registers the ids)
 
 
 def parse_protocol(text: str) -> list[float]:
-    """``steady:MN`` -> [MN]; ``pulse:A:B`` -> [A, B] (``off`` -> inf)."""
+    """``steady:MN`` -> [MN]; ``pulse:A:B[:C...]`` -> [A, B, ...] (``off`` -> inf), one field per interval."""
     kind, *values = text.split(":")
-    masons = [math.inf if v == "off" else float(v) for v in values]
-    if kind == "steady" and len(masons) == 1 or kind == "pulse" and len(masons) == 2:
+    try:
+        masons = [math.inf if v == "off" else float(v) for v in values]
+    except ValueError:
+        masons = []
+    if kind == "steady" and len(masons) == 1 or kind == "pulse" and len(masons) >= 2:
         if all(m > 0 for m in masons):
             return masons
-    raise ValueError(f"a protocol is steady:MN or pulse:MN1:MN2 with Mn_ref > 0 or 'off', got {text!r}")
+    raise ValueError(
+        f"a protocol is steady:MN or pulse:MN1:MN2[:MN3...] with Mn_ref > 0 or 'off', got {text!r}"
+    )
 
 
 MICROSTRUCTURE = ("contact_number", "fabric_yy", "fabric_xy", "g_pole", "g_equator")
@@ -149,7 +155,7 @@ def main(argv: list[str] | None = None) -> None:
         )
     columns = ["eta_r", *GROUPS, *MICROSTRUCTURE]
     print(
-        "\nBy phase (a pulse's two fields apart; means over states of the intervals' means; eta_r by stress"
+        "\nBy phase (a pulse's fields apart; means over states of the intervals' means; eta_r by stress"
         " contribution; microstructure at the intervals' ends):\n"
     )
     print("| protocol | phase (Mn_ref) | " + " | ".join(columns) + " |")
@@ -159,11 +165,13 @@ def main(argv: list[str] | None = None) -> None:
         for phase, mason in enumerate(masons):
             cells = [np.mean([rows[phase][c] for rows in per_state]) for c in columns]
             label = "off" if math.isinf(mason) else f"{mason:g}"
+            if len(masons) > 2:  # a field can recur in a longer pattern: name its place too
+                label = f"{phase + 1} of {len(masons)}: {label}"
             print(f"| {name} | {label} | " + " | ".join(f"{v:.3f}" for v in cells) + " |")
 
 
 def phase_rows(episode: dict, period: int, skip: int) -> list[dict[str, float]]:
-    """Per phase ``k`` of a protocol of ``period`` fields (1: steady; 2: a pulse's first and second field):
+    """Per phase ``k`` of a protocol of ``period`` fields (1: steady; 2 or more: a pulse's fields in turn):
     means over the intervals ``i >= skip`` with ``i % period == k`` of eta_r, its contribution groups
     (:data:`GROUPS`) and the recorded microstructure."""
     rows = []

@@ -18,7 +18,8 @@ def test_protocols_parse() -> None:
     assert pulse_train.parse_protocol("steady:0.2") == [0.2]
     assert pulse_train.parse_protocol("steady:off") == [math.inf]
     assert pulse_train.parse_protocol("pulse:0.1:off") == [0.1, math.inf]
-    for bad in ("steady:0.1:0.2", "pulse:0.1", "ramp:1", "steady:-1", "steady:0"):
+    assert pulse_train.parse_protocol("pulse:0.1:0.1:off:off") == [0.1, 0.1, math.inf, math.inf]
+    for bad in ("steady:0.1:0.2", "pulse:0.1", "ramp:1", "steady:-1", "steady:0", "pulse:0.1:strong"):
         with pytest.raises(ValueError, match="steady:MN or pulse:MN1:MN2"):
             pulse_train.parse_protocol(bad)
 
@@ -45,17 +46,20 @@ def test_pulse_alternates_and_energy_is_the_field_energy(
         "--states",
         "2",
     ]
-    argv += ["--intervals", "2", "--skip", "0", "--protocols", "steady:off,pulse:0.1:off"]
+    argv += ["--intervals", "3", "--skip", "0", "--protocols", "steady:off,pulse:0.1:off,pulse:0.1:off:off"]
     pulse_train.main(argv)
     episodes = json.loads((tmp_path / "episodes.json").read_text())
-    # eps E0^2 = 1/Mn_ref in eta gammadot_ref: 10 with Mn_ref = 0.1, then the field off
-    assert episodes["pulse:0.1:off/0"]["energy"] == pytest.approx([10.0, 0.0], rel=1e-9)
+    # eps E0^2 = 1/Mn_ref in eta gammadot_ref: 10 with Mn_ref = 0.1, 0 with the field off
+    assert episodes["pulse:0.1:off/0"]["energy"] == pytest.approx([10.0, 0.0, 10.0], rel=1e-9)
+    assert episodes["pulse:0.1:off:off/0"]["energy"] == pytest.approx([10.0, 0.0, 0.0], rel=1e-9)
     assert episodes["pulse:0.1:off/1"]["mason_number"][1] == "inf"
-    assert episodes["steady:off/0"]["energy"] == [0.0, 0.0]
+    assert episodes["steady:off/0"]["energy"] == [0.0, 0.0, 0.0]
     out = capsys.readouterr().out
     assert "| pulse:0.1:off |" in out
-    # the phase table: the field's stress is there in the field-on phase only, and the groups sum to eta_r
+    # the phase table: the field's stress is there in the field-on phase only, and the groups sum to eta_r;
+    # a pattern longer than two names each place
     assert "| pulse:0.1:off | off |" in out and "| pulse:0.1:off | 0.1 |" in out
+    assert "| pulse:0.1:off:off | 2 of 3: off |" in out and "| pulse:0.1:off:off | 3 of 3: off |" in out
     on, off = pulse_train.phase_rows(episodes["pulse:0.1:off/0"], period=2, skip=0)
     assert off["field"] == 0.0 and on["field"] != 0.0
     for row in (on, off):
