@@ -1100,8 +1100,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     realisations = f" x {args.repeats} realisations each (averaged per state)" if args.repeats > 1 else ""
     if policies and policy_repeats != args.repeats:
         realisations += f" ({policy_repeats} per state and training seed for the policies)"
+    played_ids = sorted({str(configs[run]["env_id"]) for runs, _ in policies.values() for run in runs})
+    others = [env_id for env_id in played_ids if env_id != pareto["env_id"]]
+    envs = (
+        f" (the constant fields' env; the policies' {', '.join(played_ids)}, checked to differ from it only "
+        "in the observation, the action map or the reward)"
+        if others
+        else ""
+    )
     header = (
-        f"Environment {pareto['env_id']}, {len(indices)} {split} start states{realisations}; eta_r and "
+        f"Environment {pareto['env_id']}{envs}, {len(indices)} {split} start states{realisations}; eta_r and "
         "energy are time averages over the second half of each episode (energy in eta gammadot per unit "
         "strain); intervals "
         "are 95% stratified-bootstrap intervals (rliable) over training seeds and states (policies) or over "
