@@ -6,6 +6,7 @@
 # every episode already stored in their folders (rerun to resume after an interruption).
 #
 #     scripts/thickening_evaluation.sh [WORKERS]   # default 2; writes results/thickening_control/v2/evaluation_final{,_sac_sampled}
+#                                                  # and the summary table evaluation_final/summary.md
 #
 # Each run's episodes are stored in DIR/runs/ when its 16 are done and reused while the model's contents
 # (SHA-256), the states and the play arguments are the same, so the evaluation runs in chunks across
@@ -41,3 +42,7 @@ fi
     --baseline "$V1/open_loop" --controllers "$V2/pulse" \
     --repeats 4 --policy-repeats 1 --validation-baseline "$V1/open_loop_validation" \
     --workers "$WORKERS" --out "$V2/evaluation_final_sac_sampled"
+# The README's summary table (agents.evaluate's numbers, selected): every row once, SAC's sampled policy
+# with them.
+"$PY" scripts/thickening_summary.py "$V2/evaluation_final" "$V2/evaluation_final_sac_sampled" \
+    > "$V2/evaluation_final/summary.md"
