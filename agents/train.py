@@ -445,6 +445,12 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     )
     if latest is not None:
         _restore_eval_history(callbacks.callbacks[1], out / "eval" / "evaluations.npz", steps_done)
+        # SB3's callbacks count their calls from 0 at every learn(), and validate and checkpoint when the
+        # count is a multiple of their period: without this, a run resumed at step S (a SIGTERM
+        # checkpoint, or one every 1000 steps against validation every 5000) validates at S + 5000,
+        # S + 10000, ... instead of at 5000, 10000, and may miss its last validation.
+        for callback in (callbacks, *callbacks.callbacks):
+            callback.n_calls = steps_done // n_envs
     tic = time.perf_counter()
     remaining = max(total - steps_done, 0)
     # SIGTERM (e.g. `pkill -TERM -f agents.train`) stops at the next step with a checkpoint there.

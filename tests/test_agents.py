@@ -529,6 +529,11 @@ def test_sigterm_stops_training_with_a_checkpoint_and_the_rerun_resumes_there(
     monkeypatch.setattr(callbacks.PhysicsLoggerCallback, "_on_step", original)
     result = train.main(argv)[0]
     assert result["resumed_from"] == 40 and result["timesteps"] >= 64
+    # validation and checkpoints stay on the run's own step grid (eval_freq 64, checkpoint_freq 32), not
+    # shifted by the resume step (SB3 alone would validate at 40 + 64, after the run's end)
+    with np.load(run / "eval" / "evaluations.npz") as log:
+        assert [int(t) for t in log["timesteps"]] == [64]
+    assert (run / "checkpoints" / "ckpt_64_steps.zip").exists()
 
 
 def test_validation_baseline_lines_are_its_no_field_and_best_constant_returns(
