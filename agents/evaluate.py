@@ -1101,11 +1101,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if policies and policy_repeats != args.repeats:
         realisations += f" ({policy_repeats} per state and training seed for the policies)"
     played_ids = sorted({str(configs[run]["env_id"]) for runs, _ in policies.values() for run in runs})
-    others = [env_id for env_id in played_ids if env_id != pareto["env_id"]]
     envs = (
         f" (the constant fields' env; the policies' {', '.join(played_ids)}, checked to differ from it only "
         "in the observation, the action map or the reward)"
-        if others
+        if any(env_id != pareto["env_id"] for env_id in played_ids)
         else ""
     )
     header = (

@@ -15,11 +15,13 @@ are ``agents.evaluate``'s; this only selects and formats them, so the README's t
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 from typing import Any
+
+from agents.evaluate import format_interval
+from agents.open_loop import read_json
 
 COLUMNS = (
     "row",
@@ -35,15 +37,10 @@ COLUMNS = (
 )
 
 
-def _interval(value: float | str, low: float | str, high: float | str, fmt: str) -> str:
-    """``value [low, high]``; the value alone where the interval is undefined (``agents.evaluate`` writes
-    a missing number as the string ``"nan"``), nothing where the value is."""
-    value, low, high = float(value), float(low), float(high)
-    if not math.isfinite(value):
-        return ""
-    if not (math.isfinite(low) and math.isfinite(high)):
-        return f"{value:{fmt}}"
-    return f"{value:{fmt}} [{low:{fmt}}, {high:{fmt}}]"
+def _interval(value: float, low: float, high: float, spec: str) -> str:
+    """:func:`agents.evaluate.format_interval` (the value alone where there is no interval), and nothing
+    where the value itself is missing."""
+    return "" if math.isnan(value) else format_interval(value, low, high, spec)
 
 
 def summary_row(row: dict[str, Any], verdict: dict[str, Any] | None) -> list[str]:
@@ -62,8 +59,7 @@ def summary_row(row: dict[str, Any], verdict: dict[str, Any] | None) -> list[str
         _interval(verdict["state_gap"], verdict["state_gap_low"], verdict["state_gap_high"], "+.1f"),
         f"{verdict['states_above']}/{verdict['states']}",
         _interval(verdict["improvement"], verdict["improvement_low"], verdict["improvement_high"], ".2f"),
-        _interval(*(100 * float(verdict[f"energy_saved{end}"]) for end in ("", "_low", "_high")), ".0f")
-        + "%",
+        _interval(*(100 * verdict[f"energy_saved{end}"] for end in ("", "_low", "_high")), ".0f") + "%",
         str(verdict["target_verdict"]),
     ]
 
@@ -93,7 +89,7 @@ def main(argv: list[str] | None = None) -> None:
         path = folder / "results.json"
         if not path.is_file():
             parser.error(f"EVAL_DIR: {folder} holds no results.json (an agents.evaluate --out folder)")
-        results.append(json.loads(path.read_text()))
+        results.append(read_json(path))  # "nan", "inf" back to floats
     splits = {(r["split"], tuple(r["indices"])) for r in results}
     if len(splits) > 1:
         parser.error(f"EVAL_DIR: the folders were played on different states: {sorted(splits)}")
