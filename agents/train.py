@@ -375,7 +375,9 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     checkpoint_freq = int(hp.pop("checkpoint_freq"))
 
     library = probe.unwrapped.library()  # type: ignore[attr-defined]
-    library.ensure(["train", "validation"], progress=progress)
+    # pre-shear the missing start states with as many processes as the run will step envs in
+    generators = n_envs if can_start_subprocesses() else 1
+    library.ensure(["train", "validation"], progress=progress, workers=generators)
     n_validation = probe.unwrapped.split_sizes["validation"]  # type: ignore[attr-defined]
     probe.close()
 
