@@ -375,16 +375,17 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     checkpoint_freq = int(hp.pop("checkpoint_freq"))
 
     library = probe.unwrapped.library()  # type: ignore[attr-defined]
-    # pre-shear the missing start states with as many processes as the run will step envs in
-    generators = n_envs if can_start_subprocesses() else 1
-    library.ensure(["train", "validation"], progress=progress, workers=generators)
+    # the envs step in n_envs processes unless this process may not start any (a daemonic worker); the
+    # missing start states are pre-sheared in as many
+    subprocess_envs = n_envs > 1 and can_start_subprocesses()
+    library.ensure(["train", "validation"], progress=progress, workers=n_envs if subprocess_envs else 1)
     n_validation = probe.unwrapped.split_sizes["validation"]  # type: ignore[attr-defined]
     probe.close()
 
     quiet = {**env_kwargs, "progress": False}
     checkpoints = out / "checkpoints"
     latest = _latest_checkpoint(checkpoints)
-    vec_cls = SubprocVecEnv if n_envs > 1 and can_start_subprocesses() else DummyVecEnv
+    vec_cls = SubprocVecEnv if subprocess_envs else DummyVecEnv
     venv = make_vec_env(
         functools.partial(make_env, env_id, quiet),
         n_envs=n_envs,
