@@ -43,6 +43,13 @@ def _interval(value: float, low: float, high: float, spec: str) -> str:
     return "" if math.isnan(value) else format_interval(value, low, high, spec)
 
 
+def _percent(value: float, low: float, high: float) -> str:
+    """A fraction and its interval in per cent (``12 [-5, 28]%``); nothing where the fraction is missing
+    (a verdict that could not be paired)."""
+    cell = _interval(100 * value, 100 * low, 100 * high, ".0f")
+    return cell + "%" if cell else ""
+
+
 def summary_row(row: dict[str, Any], verdict: dict[str, Any] | None) -> list[str]:
     """The table's cells for one ``results.json`` row and its verdict (None: a baseline row)."""
     ret = row["return"]
@@ -59,7 +66,7 @@ def summary_row(row: dict[str, Any], verdict: dict[str, Any] | None) -> list[str
         _interval(verdict["state_gap"], verdict["state_gap_low"], verdict["state_gap_high"], "+.1f"),
         f"{verdict['states_above']}/{verdict['states']}",
         _interval(verdict["improvement"], verdict["improvement_low"], verdict["improvement_high"], ".2f"),
-        _interval(*(100 * verdict[f"energy_saved{end}"] for end in ("", "_low", "_high")), ".0f") + "%",
+        _percent(*(verdict[f"energy_saved{end}"] for end in ("", "_low", "_high"))),
         str(verdict["target_verdict"]),
     ]
 

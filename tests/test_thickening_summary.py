@@ -31,6 +31,13 @@ def test_rows_carry_agents_evaluates_numbers(capsys: pytest.CaptureFixture) -> N
     assert len(lines) == 2 + 7  # no field, best constant, feed-forward, 2 PI, PPO, pulse
 
 
+def test_an_unpaired_energy_saving_is_a_blank_cell() -> None:
+    """A verdict whose saving is NaN (``agents.comparison`` could not pair the states) prints nothing in
+    the energy column, not a bare per cent sign; a paired one prints its interval in per cent."""
+    assert thickening_summary._percent(float("nan"), float("nan"), float("nan")) == ""
+    assert thickening_summary._percent(0.12, -0.05, 0.28) == "12 [-5, 28]%"
+
+
 def test_a_folder_without_results_exits_2(tmp_path: Path) -> None:
     with pytest.raises(SystemExit) as stop:
         thickening_summary.main([str(tmp_path)])
