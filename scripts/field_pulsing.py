@@ -2,7 +2,7 @@
 field, and how often consecutive intervals switch between the strongest field and a weak one or none.
 
     python scripts/field_pulsing.py RUN_JSON [RUN_JSON ...] [--strongest 0.1] [--weak 5] [--high-rate 2]
-        [--low-rate 1] [--rate-bins 0.2,0.5,1,2,3,5]
+        [--low-rate 1] [--rate-bins 0.2,0.5,1,2,3,5] [--plot PNG [--labels A,B,...]]
 
 ``RUN_JSON`` is a per-run file of an ``agents.evaluate`` folder (``DIR/runs/<policy>_seed<k>.json``) or a
 controller's or constant field's point (``DIR/points/<label>.json``): its episodes' interval traces
@@ -17,7 +17,9 @@ interval is above ``--high-rate`` that switch between strongest and weak (either
 A second table bins every interval of a file's episodes by its mean shear rate (``--rate-bins``, edges in
 ``gammadot_ref``) and gives, per bin, the mean field energy ``eps E0^2 = 1/Mn_ref`` (``eta gammadot_ref``),
 the mean excess ``max(0, eta_r - eta_cap)`` and the mean reward per interval: where a controller spends its
-field and where it pays for thickening. Intervals outside the edges are left out.
+field and where it pays for thickening. Intervals outside the edges are left out. ``--plot PNG`` draws
+the field energy and the excess by rate bin, one line per file, or per label: files given the same label in
+``--labels`` (one per file, comma-separated) are pooled into one line, e.g. the seeds of one policy.
 """
 
 from __future__ import annotations
@@ -66,6 +68,42 @@ def rate_bin_means(traces: list[dict], edges: np.ndarray) -> np.ndarray:
     return out
 
 
+def plot_rate_bins(tables: dict[str, np.ndarray], edges: np.ndarray, path: Path) -> None:
+    """Field energy and excess by rate bin (tables of :func:`rate_bin_means`), one line per entry, at the
+    bins' geometric centres (arithmetic where an edge is 0) on a log rate axis."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    lo, hi = edges[:-1], edges[1:]
+    centres = np.where(lo > 0, np.sqrt(lo * hi), 0.5 * (lo + hi))
+    fig, (energy_ax, excess_ax) = plt.subplots(1, 2, figsize=(9.5, 3.8), sharex=True)
+    for name, table in tables.items():
+        energy_ax.plot(centres, table[:, 1], "o-", label=name)
+        excess_ax.plot(centres, table[:, 2], "o-", label=name)
+    energy_ax.set(
+        xscale="log",
+        xlabel="shear rate (gammadot_ref), interval mean",
+        ylabel="field energy eps E0^2 = 1/Mn_ref",
+        title="where the field is spent",
+    )
+    excess_ax.set(
+        xlabel="shear rate (gammadot_ref), interval mean",
+        ylabel="excess max(0, eta_r - eta_cap)",
+        title="where thickening is paid",
+    )
+    ticks = edges[edges > 0]
+    for ax in (energy_ax, excess_ax):
+        ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
+        ax.set_xticks([], minor=True)
+        ax.grid(alpha=0.3)
+    excess_ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=150)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("runs", nargs="+", type=Path)
@@ -76,7 +114,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--rate-bins", default="0.2,0.5,1,2,3,5", help="comma-separated increasing edges of the rate bins"
     )
+    parser.add_argument("--plot", type=Path, metavar="PNG", help="draw the rate-bin means to this file")
+    parser.add_argument(
+        "--labels", help="comma-separated line labels for --plot, one per RUN_JSON (equal labels pool)"
+    )
     args = parser.parse_args(argv)
+    labels_given = args.labels.split(",") if args.labels is not None else [p.stem for p in args.runs]
+    if len(labels_given) != len(args.runs):
+        parser.error(f"--labels must name each of the {len(args.runs)} RUN_JSON, got {len(labels_given)}")
+    if args.labels is not None and args.plot is None:
+        parser.error("--labels names the lines of --plot; give --plot PNG too")
     try:
         edges = np.array([float(x) for x in args.rate_bins.split(",")])
     except ValueError:
@@ -94,10 +141,10 @@ def main(argv: list[str] | None = None) -> None:
         f"{args.low_rate:g} | strongest <-> weak switches per interval, rate > {args.high_rate:g} |"
     )
     print("|---|---|---|---|---|")
-    traces = {}
+    traces: list[tuple[str, list[dict]]] = []  # per file, in order (two folders may hold equal names)
     for path in args.runs:
         episodes = json.loads(path.read_text())["episodes"]
-        traces[path.name] = [e["trace"] for e in episodes]
+        traces.append((path.name, [e["trace"] for e in episodes]))
         rows = np.array(
             [
                 episode_fractions(e["trace"], args.strongest, args.weak, args.high_rate, args.low_rate)
@@ -113,12 +160,17 @@ def main(argv: list[str] | None = None) -> None:
     print("(the first row: each bin's share of the intervals)\n")
     print("| run | " + " | ".join(labels) + " |")
     print("|---|" + "---|" * len(labels))
-    for name, file_traces in traces.items():
+    for k, (name, file_traces) in enumerate(traces):
         table = rate_bin_means(file_traces, edges)
-        if name == next(iter(traces)):
+        if k == 0:
             print("| share | " + " | ".join(f"{v:.2f}" for v in table[:, 0]) + " |")
         cells = [f"{e:.2f} / {x:.2f} / {r:.2f}" for _, e, x, r in table]
         print(f"| {name} | " + " | ".join(cells) + " |")
+    if args.plot is not None:
+        pooled: dict[str, list[dict]] = {}
+        for label, (_, file_traces) in zip(labels_given, traces, strict=True):
+            pooled.setdefault(label, []).extend(file_traces)
+        plot_rate_bins({k: rate_bin_means(v, edges) for k, v in pooled.items()}, edges, args.plot)
 
 
 if __name__ == "__main__":

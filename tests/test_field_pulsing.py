@@ -1,6 +1,7 @@
 """scripts/field_pulsing.py: the switch and strongest-field shares on traces whose answers are known."""
 
 import importlib.util
+import json
 import math
 from pathlib import Path
 
@@ -62,3 +63,48 @@ def test_rate_bins_average_within_each_bin() -> None:
     assert table[0, 1:] == pytest.approx([2.0, 0.3, -0.9])
     assert table[1, 1:] == pytest.approx([5.0, 0.0, -1.5])
     assert np.isnan(table[2, 1:]).all()
+
+
+def _episode_file(path: Path, rates: list[float], energies: list[float]) -> Path:
+    trace = {
+        "mason_number": [1.0 / e if e > 0 else "inf" for e in energies],
+        "shear_rate": rates,
+        "field_energy": energies,
+        "eta_r": [8.0] * len(rates),
+        "eta_cap": 7.7,
+        "reward": [-1.0] * len(rates),
+    }
+    path.write_text(json.dumps({"episodes": [{"trace": trace}]}))
+    return path
+
+
+def test_plot_pools_equal_labels(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two files under one label are one line whose bin means pool both files' intervals; a third file
+    under its own label is a second line."""
+    a = _episode_file(tmp_path / "a.json", [0.5, 3.0], [1.0, 4.0])
+    b = _episode_file(tmp_path / "b.json", [0.5, 3.0], [3.0, 0.0])
+    c = _episode_file(tmp_path / "c.json", [0.5, 3.0], [2.0, 2.0])
+    drawn = {}
+    monkeypatch.setattr(field_pulsing, "plot_rate_bins", lambda tables, edges, path: drawn.update(tables))
+    field_pulsing.main(
+        [str(a), str(b), str(c), "--rate-bins", "0.2,1,5", "--plot", "x.png", "--labels", "P,P,C"]
+    )
+    assert list(drawn) == ["P", "C"]
+    assert drawn["P"][:, 1] == pytest.approx([2.0, 2.0])  # (1 + 3)/2 below rate 1, (4 + 0)/2 above
+    assert drawn["C"][:, 1] == pytest.approx([2.0, 2.0])
+
+
+def test_plot_writes_a_png(tmp_path: Path) -> None:
+    a = _episode_file(tmp_path / "a.json", [0.5, 3.0], [1.0, 4.0])
+    field_pulsing.main([str(a), "--rate-bins", "0.2,1,5", "--plot", str(tmp_path / "bins.png")])
+    assert (tmp_path / "bins.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(
+    "extra", [["--plot", "x.png", "--labels", "A,B"], ["--labels", "A"]], ids=["count", "no-plot"]
+)
+def test_bad_labels_exit_2(tmp_path: Path, extra: list[str]) -> None:
+    a = _episode_file(tmp_path / "a.json", [0.5], [1.0])
+    with pytest.raises(SystemExit) as stop:
+        field_pulsing.main([str(a), *extra])
+    assert stop.value.code == 2
