@@ -33,7 +33,8 @@ their training seeds its samples. Each run plays one deterministic episode from 
 ``--episodes`` start states of ``--split`` (by default the states of the baseline's points), with the
 observation normalisation it was trained with; per-run results go to ``DIR/runs/`` (reused on rerun while
 the run, its model's and statistics' contents (SHA-256), the states and the play arguments are the same,
-so a fresh checkout of committed results replays nothing).
+so a fresh checkout of committed results replays nothing); a run interrupted part way keeps the episodes it
+finished in ``DIR/runs/<run>.partial.json`` and resumes at the next one.
 ``--model best`` plays, instead of the final policy, each run's checkpoint with the highest mean validation
 return (model selection on the validation states, testing on the held-out test states). The baseline's
 stored returns are rescored with the reward of the policies' env (that of the first run's config), and the
@@ -399,13 +400,25 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
 
     deterministic = not payload.get("stochastic", False)
     env = make_env(config["env_id"], {**payload.get("env_kwargs", config["env_kwargs"]), "progress": False})
+    # The episodes played so far are kept in a partial file beside ``path`` after each one, so an
+    # interrupted evaluation resumes at the next episode (each episode is a function of its start state,
+    # realisation and the torch seed set below, not of the episodes before it).
+    partial = path.with_name(path.stem + ".partial.json")
+    done: dict[tuple[int, int], dict[str, Any]] = {}
+    if partial.exists():
+        old = read_json(partial)
+        if old.get("identity") == payload["identity"]:
+            done = {(int(e["index"]), int(e["realisation"])): e for e in old["episodes"]}
     episodes = []
     for index in payload["indices"]:
         for realisation in range(payload.get("repeats", 1)):
-            # the stochastic policy's samples: reproducible per start state and realisation
-            torch.manual_seed(index + 100_003 * realisation)
-            trace = run_episode(env, policy, payload["split"], index, realisation=realisation)
-            episodes.append({**trace.summary(), "trace": trace.to_dict()})
+            if (index, realisation) not in done:
+                # the stochastic policy's samples: reproducible per start state and realisation
+                torch.manual_seed(index + 100_003 * realisation)
+                trace = run_episode(env, policy, payload["split"], index, realisation=realisation)
+                done[(index, realisation)] = {**trace.summary(), "trace": trace.to_dict()}
+                write_json(partial, {"identity": payload["identity"], "episodes": list(done.values())})
+            episodes.append(done[(index, realisation)])
     key = env.unwrapped.library().key  # type: ignore[attr-defined]
     env.close()
     record = {
@@ -418,6 +431,7 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
         "episodes": episodes,
     }
     write_json(path, record)
+    partial.unlink(missing_ok=True)
     return record
 
 

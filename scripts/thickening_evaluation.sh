@@ -9,8 +9,9 @@
 #                                                  # and the summary table evaluation_final/summary.md
 #
 # Each run's episodes are stored in DIR/runs/ when its 16 are done and reused while the model's contents
-# (SHA-256), the states and the play arguments are the same, so the evaluation runs in chunks across
-# sessions: stop it, commit both folders (runs/ included), rerun. Uses the project's interpreter
+# (SHA-256), the states and the play arguments are the same; a run stopped part way keeps its finished
+# episodes in DIR/runs/<run>.partial.json and resumes at the next one. So the evaluation runs in chunks
+# across sessions: stop it (pkill -TERM -f agents.evaluate), commit both folders (runs/ included), rerun. Uses the project's interpreter
 # (.venv/bin/python, or $PYTHON). On the 2-core machine: 15 runs x 16 episodes plus SAC's 5 x 16 sampled,
 # ~1.3 min each (48 steps at ~0.6 steps/s), so 3-4 hours on two workers.
 set -euo pipefail

@@ -354,6 +354,23 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     row = next(r for r in result["rows"] if r["name"] == "ppo (ppo)")
     assert row["per_seed"]["return"] == pytest.approx(per_seed, rel=1e-12)
     assert "(2 per state and training seed for the policies)" in (out_r2 / "table.md").read_text()
+    # An evaluation stopped part way through a run resumes at the next episode: the finished ones come
+    # from the partial file (marked here, so a replay would show), the rest are played as before
+    stored_file = out_r2 / "runs" / "ppo_seed0.json"
+    stored = json.loads(stored_file.read_text())
+    first, second = stored["episodes"]
+    partial_file = out_r2 / "runs" / "ppo_seed0.partial.json"
+    partial_file.write_text(json.dumps({"identity": stored["identity"], "episodes": [{**first, "mark": 1}]}))
+    stored_file.unlink()
+    evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out_r2), "--policy-repeats", "2"])
+    resumed = json.loads(stored_file.read_text())["episodes"]
+    assert resumed[0] == {**first, "mark": 1} and resumed[1] == second and not partial_file.exists()
+    # a partial file of another identity (e.g. another model) is not used
+    other = {**stored["identity"], "model_sha256": "0"}
+    partial_file.write_text(json.dumps({"identity": other, "episodes": [{**first, "mark": 1}]}))
+    stored_file.unlink()
+    evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out_r2), "--policy-repeats", "2"])
+    assert json.loads(stored_file.read_text())["episodes"] == [first, second]
 
     # Bad inputs exit 2 naming the argument: no run in the folder, a baseline of another env
     with pytest.raises(SystemExit) as missing:
