@@ -1,0 +1,123 @@
+"""Two rows of an evaluation compared on the same start states: return, excess viscosity and field energy of
+row A minus row B, paired per state.
+
+    python scripts/paired_rows.py --a RUN_JSON [RUN_JSON ...] --b RUN_JSON [RUN_JSON ...] [--split test]
+        [--names A,B]
+
+Each ``RUN_JSON`` is a per-run file of an ``agents.evaluate`` folder (``DIR/runs/<policy>_seed<k>.json``) or
+a controller's or constant field's point (``DIR/points/<label>.json``). A row's episodes on one start state
+(its seeds' and realisations' episodes, those of ``--split``) are averaged first; the two rows must cover
+the same states. Printed (Markdown): per row the mean over states of the whole-episode return, the excess
+``eta_r`` over the cap and the field energy ``<eps E0^2>`` (``eta gammadot_ref``); then A - B, paired per
+state, with 95% percentile-bootstrap intervals over the states (NumPy's generator seeded with 0, 10^4
+resamples; the same resampling as :func:`agents.comparison.energy_target`, which gives the energy saving
+of A against B, ``1 - sum E_A / sum E_B``), and the number of states where A is higher.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from agents.comparison import energy_target
+
+QUANTITIES = ("return", "excess_viscosity", "energy_mean")
+
+
+def per_state(files: list[Path], split: str) -> dict[int, dict[str, float]]:
+    """Mean of each quantity over a row's episodes on each start state (index), failed episodes left out."""
+    pooled: dict[int, dict[str, list[float]]] = {}
+    for path in files:
+        for episode in json.loads(path.read_text())["episodes"]:
+            if episode.get("split", split) != split or episode.get("failed"):
+                continue
+            slot = pooled.setdefault(int(episode["index"]), {q: [] for q in QUANTITIES})
+            for q in QUANTITIES:
+                slot[q].append(float(episode[q]))
+    return {index: {q: float(np.mean(v)) for q, v in values.items()} for index, values in pooled.items()}
+
+
+def bootstrap_mean(values: np.ndarray, resamples: int = 10_000) -> tuple[float, float, float]:
+    """Mean of ``values`` with its 95% percentile-bootstrap interval (seeded with 0)."""
+    if values.size < 2:
+        return float(values.mean()) if values.size else math.nan, math.nan, math.nan
+    rng = np.random.default_rng(0)
+    means = values[rng.integers(0, values.size, size=(resamples, values.size))].mean(axis=1)
+    low, high = np.percentile(means, [2.5, 97.5])
+    return float(values.mean()), float(low), float(high)
+
+
+def compare(a: dict[int, dict[str, float]], b: dict[int, dict[str, float]]) -> dict[str, dict[str, float]]:
+    """A - B per quantity, paired over the states both rows hold (raises if they hold different states)."""
+    if set(a) != set(b):
+        raise ValueError(f"the rows cover different states: A {sorted(a)}, B {sorted(b)}")
+    states = sorted(a)
+    out: dict[str, dict[str, float]] = {}
+    for q in QUANTITIES:
+        gaps = np.array([a[s][q] - b[s][q] for s in states])
+        mean, low, high = bootstrap_mean(gaps)
+        out[q] = {
+            "a": float(np.mean([a[s][q] for s in states])),
+            "b": float(np.mean([b[s][q] for s in states])),
+            "gap": mean,
+            "low": low,
+            "high": high,
+            "states_higher": int((gaps > 0).sum()),
+        }
+    target = energy_target(
+        [a[s]["energy_mean"] for s in states],
+        [a[s]["excess_viscosity"] for s in states],
+        [b[s]["energy_mean"] for s in states],
+        [b[s]["excess_viscosity"] for s in states],
+    )
+    out["energy_saved"] = {k: target[k] for k in ("energy_saved", "energy_saved_low", "energy_saved_high")}
+    out["states"] = {"count": len(states)}
+    return out
+
+
+def table(result: dict[str, dict[str, float]], names: tuple[str, str]) -> str:
+    """The comparison as a Markdown table."""
+    a, b = names
+    n = result["states"]["count"]
+    lines = [
+        f"| quantity | {a} | {b} | {a} - {b}, paired per state [95% CI] | states where {a} is higher |",
+        "|---|---|---|---|---|",
+    ]
+    for q in QUANTITIES:
+        r = result[q]
+        lines.append(
+            f"| {q} | {r['a']:.3f} | {r['b']:.3f} | {r['gap']:+.3f} [{r['low']:+.3f}, {r['high']:+.3f}] "
+            f"| {r['states_higher']}/{n} |"
+        )
+    s = result["energy_saved"]
+    lines.append(
+        f"\nField energy saved by {a} against {b}: {100 * s['energy_saved']:.0f}% "
+        f"[{100 * s['energy_saved_low']:.0f}, {100 * s['energy_saved_high']:.0f}] ({n} states)."
+    )
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--a", type=Path, nargs="+", required=True, help="row A's run or point files")
+    parser.add_argument("--b", type=Path, nargs="+", required=True, help="row B's run or point files")
+    parser.add_argument("--split", default="test", help="episodes of this split only (default test)")
+    parser.add_argument("--names", default="A,B", help="the two rows' names in the table (default A,B)")
+    args = parser.parse_args(argv)
+    names = tuple(args.names.split(","))
+    if len(names) != 2:
+        parser.error(f"--names takes two comma-separated names, got {args.names!r}")
+    try:
+        result = compare(per_state(args.a, args.split), per_state(args.b, args.split))
+    except ValueError as error:
+        parser.error(str(error))
+    print(table(result, (names[0], names[1])))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
