@@ -53,7 +53,6 @@ from sim.dipolophoresis.far_field import MECHANISM_DEP, MECHANISM_DIP, MECHANISM
 from sim.dipolophoresis.near_field import LOG_FORM, near_field_kernel
 from sim.dipolophoresis.near_field_stress import (
     ICEP_PAIR_FAR_FIELD,
-    add_basis,
     dep_force_kernel,
     near_field_stress_kernel,
 )
@@ -206,6 +205,51 @@ def _pair_functions(
     return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
 
 
+@njit(cache=True, inline="always")
+def _accumulate_basis(
+    acc: np.ndarray,
+    factor: float,
+    a1: float,
+    a2: float,
+    a3: float,
+    a4: float,
+    x0: float,
+    x1: float,
+    x2: float,
+    c: float,
+) -> None:
+    """Add one pair's ``factor (a1 T1 + a2 T2 + a3 T3 + a4 T4)`` (:func:`add_basis`) to the sums ``acc``:
+    ``A1, P (3), S2, M (xx, xy, xz, yy, yz, zz), R`` of :func:`add_pair_corrections`."""
+    b = factor * a2 * c
+    m = factor * (a3 + a4 * c * c)
+    acc[0] += factor * a1
+    acc[1] += b * x0
+    acc[2] += b * x1
+    acc[3] += b * x2
+    acc[4] += b * c
+    acc[5] += m * x0 * x0
+    acc[6] += m * x0 * x1
+    acc[7] += m * x0 * x2
+    acc[8] += m * x1 * x1
+    acc[9] += m * x1 * x2
+    acc[10] += m * x2 * x2
+    acc[11] += m
+
+
+@njit(cache=True)
+def _add_accumulated_basis(out: np.ndarray, acc: np.ndarray, e: np.ndarray) -> None:
+    """``out += A1 (ee - I/3) + e P + P e - (2/3) S2 I + M - (R/3) I`` from the sums of
+    :func:`_accumulate_basis` (``out`` shape ``(3, 3)``)."""
+    m = ((acc[5], acc[6], acc[7]), (acc[6], acc[8], acc[9]), (acc[7], acc[9], acc[10]))
+    trace = -(acc[0] + 2.0 * acc[4] + acc[11]) / 3.0
+    for i in range(3):
+        for j in range(3):
+            v = acc[0] * e[i] * e[j] + e[i] * acc[1 + j] + acc[1 + i] * e[j] + m[i][j]
+            if i == j:
+                v += trace
+            out[i, j] += v
+
+
 @njit(cache=True)
 def add_near_field_corrections(
     positions: np.ndarray,
@@ -289,8 +333,13 @@ def add_pair_corrections(
     want_icep = icep_weight > 0.0
     want_dep = dep_weight > 0.0
     volume = box_length**3
-    xh = np.empty(3)
-    d_force = np.empty(3)
+    e0, e1, e2 = e[0], e[1], e[2]
+    # The two stresslet sums in the basis of add_basis, accumulated in scalars (module docstring):
+    # sum_k (a1 T1 + a2 T2 + (a3 + a4 c^2) T3) = A1 T1 + (e P + P e) - (2/3) S2 I + M - (R/3) I, with
+    # A1 = sum a1, P = sum a2 c xh, S2 = sum a2 c^2, M = sum (a3 + a4 c^2) xh xh, R = sum (a3 + a4 c^2).
+    # Slot 0 ICEP, slot 1 DEP-induced; the DEP virial in its six independent components.
+    basis = np.zeros((2, 12))
+    v00 = v01 = v02 = v11 = v12 = v22 = 0.0
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -298,9 +347,10 @@ def add_pair_corrections(
         w = blend_weight(r, r_cut, width)
         if w == 0.0:
             continue
-        for m in range(3):
-            xh[m] = -separations[k, m] / r  # separations are x_j - x_i; alpha = i, xh from j to i
-        c = e[0] * xh[0] + e[1] * xh[1] + e[2] * xh[2]
+        x0 = -separations[k, 0] / r  # separations are x_j - x_i; alpha = i, xh from j to i
+        x1 = -separations[k, 1] / r
+        x2 = -separations[k, 2] / r
+        c = e0 * x0 + e1 * x1 + e2 * x2
         # velocity: w (exact - far) in the isotropic form, U_j = -U_i
         (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
             _pair_functions(r, near_code, want_icep, want_dep, tables)
@@ -308,35 +358,59 @@ def add_pair_corrections(
         far_par, far_perp, far_x = far_field_functions(r, far_code)
         radial = (exact_par - far_par) * c * c + (exact_perp - far_perp) * (1.0 - c * c)
         tangential = 2.0 * (exact_x - far_x) * c
-        for m in range(3):
-            du = w * (radial * xh[m] + tangential * (e[m] - c * xh[m]))
-            velocity[i, m] += du
-            velocity[j, m] -= du
+        du = w * (radial * x0 + tangential * (e0 - c * x0))
+        velocity[i, 0] += du
+        velocity[j, 0] -= du
+        du = w * (radial * x1 + tangential * (e1 - c * x1))
+        velocity[i, 1] += du
+        velocity[j, 1] -= du
+        du = w * (radial * x2 + tangential * (e2 - c * x2))
+        velocity[i, 2] += du
+        velocity[j, 2] -= du
         # stresses; table units pi eps a^3 E0^2 (stresslets) and pi eps a^2 E0^2 (forces)
         scale = math.pi * w / volume
         if want_icep:  # exact minus the far-field pair correction (in the Ewald sum; docs/model.md)
             inv_r3 = 1.0 / (r * r * r)
             far1, far2, far3, far4 = ICEP_PAIR_FAR_FIELD
-            add_basis(
-                icep_stress,
+            _accumulate_basis(
+                basis[0],
                 2.0 * scale,
                 f1 - far1 * inv_r3,
                 f2 - far2 * inv_r3,
                 f3 - far3 * inv_r3,
                 f4 - far4 * inv_r3,
-                xh,
-                e,
+                x0,
+                x1,
+                x2,
+                c,
             )
         if want_dep:
-            add_basis(dep_stresslet, 2.0 * scale, g1, g2, g3, g4, xh, e)
+            _accumulate_basis(basis[1], 2.0 * scale, g1, g2, g3, g4, x0, x1, x2, c)
             inv_r4 = 1.0 / (r * r * r * r)  # far field F = -3 W / r^4, W = (5c^2 - 1) xh - 2 c e
             force_radial = f_par * c * c + f_perp * (1.0 - c * c) + 3.0 * inv_r4 * (5.0 * c * c - 1.0)
             force_tangential = 2.0 * f_x * c
-            for m in range(3):  # F^exact_alpha - F^far_alpha
-                d_force[m] = (
-                    force_radial * xh[m] + force_tangential * (e[m] - c * xh[m]) - 6.0 * inv_r4 * c * e[m]
-                )
-            for a in range(3):
-                for b in range(3):
-                    dep_virial[a, b] -= 0.5 * scale * r * (xh[a] * d_force[b] + xh[b] * d_force[a])
+            # F^exact_alpha - F^far_alpha
+            d0 = force_radial * x0 + force_tangential * (e0 - c * x0) - 6.0 * inv_r4 * c * e0
+            d1 = force_radial * x1 + force_tangential * (e1 - c * x1) - 6.0 * inv_r4 * c * e1
+            d2 = force_radial * x2 + force_tangential * (e2 - c * x2) - 6.0 * inv_r4 * c * e2
+            h = 0.5 * scale * r
+            v00 += h * (x0 * d0 + x0 * d0)
+            v01 += h * (x0 * d1 + x1 * d0)
+            v02 += h * (x0 * d2 + x2 * d0)
+            v11 += h * (x1 * d1 + x1 * d1)
+            v12 += h * (x1 * d2 + x2 * d1)
+            v22 += h * (x2 * d2 + x2 * d2)
+    if want_icep:
+        _add_accumulated_basis(icep_stress, basis[0], e)
+    if want_dep:
+        _add_accumulated_basis(dep_stresslet, basis[1], e)
+        dep_virial[0, 0] -= v00
+        dep_virial[1, 1] -= v11
+        dep_virial[2, 2] -= v22
+        dep_virial[0, 1] -= v01
+        dep_virial[1, 0] -= v01
+        dep_virial[0, 2] -= v02
+        dep_virial[2, 0] -= v02
+        dep_virial[1, 2] -= v12
+        dep_virial[2, 1] -= v12
     return pairs.shape[0]
