@@ -43,9 +43,13 @@ development machine (AMD EPYC znver4) while other jobs shared it, so +-30%; erro
     4000   117        73        5.6e-8 / 5.7e-8         60 x 90 x 60, 12
 
 Plain Ewald grows as ~N^1.6 (the optimal splitting keeps ``r_c`` near ``L/2``), SPME as ~N^1.3 from
-1000 on; they cross at N ~ 2000, hence :data:`AUTO_SPME_MIN_PARTICLES`. At N = 4000 SPME spends about
-a third in the real-space sum (``r_c ~ 8``), a third in the four FFTs and the rest in spreading and
-interpolation (order 10-12: ``p^3`` mesh points per particle).
+1000 on. Measured again on 2026-12-06 with the machine's other core idle (median of 10 calls, same
+command with ``--sizes``): N = 750: Ewald 8.5, SPME 8.3 ms; 1000: 13.2 and 11.1; 1500: 25.9 and 20.3;
+2000: 38.9 and 24.7 (errors as above). They now cross at N ~ 750 (the real-space sums of the large
+Ewald cut-offs cost more than the loaded-machine table showed), hence :data:`AUTO_SPME_MIN_PARTICLES`
+= 1000 (it was 2000). At N = 4000 SPME spends about a third in the real-space sum (``r_c ~ 8``), a third
+in the four FFTs and the rest in spreading and interpolation (order 10-12: ``p^3`` mesh points per
+particle).
 
 References:
     Essmann, U., Perera, L., Berkowitz, M. L., Darden, T., Lee, H. & Pedersen, L. G. (1995) "A smooth
@@ -78,7 +82,7 @@ __all__ = [
     "spread_unit_charges",
 ]
 
-AUTO_SPME_MIN_PARTICLES = 2000
+AUTO_SPME_MIN_PARTICLES = 1000
 """``ewald_plan(method="auto")`` uses SPME from this many particles on (benchmark crossover, phi = 0.45)."""
 
 _ORDERS = (4, 6, 8, 10, 12)
