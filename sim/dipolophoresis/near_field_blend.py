@@ -88,7 +88,7 @@ def _cubic(coefficients: np.ndarray, function: int, k: int, h: float) -> float:
     return c[0] + h * (c[1] + h * (c[2] + h * c[3]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _near_contact_functions(
     gap: float,
     near_code: int,
@@ -144,6 +144,48 @@ def _near_contact_functions(
     return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
 
 
+@njit(cache=True, inline="always")
+def _spline_functions(
+    gap: float,
+    near_code: int,
+    want_icep: bool,
+    want_dep: bool,
+    grid: np.ndarray,
+    coefficients: np.ndarray,
+    stress_coefficients: np.ndarray,
+) -> tuple[float, float, float, float, float, float, float, float, float, float, float, float, float, float]:
+    """:func:`_pair_functions` between the first and the last table node (``gap >= grid[4]``,
+    ``r <= grid[3]``): one logarithm, one interval search, the splines. Inlined where it is called (numba
+    IR), so that the blend's pair loop does not pass the 14 values through memory: the blend of the pairs
+    on the splines took 0.42 ms at N = 300 through :func:`_pair_functions` and 0.25 ms inlined."""
+    f1 = f2 = f3 = f4 = g1 = g2 = g3 = g4 = f_par = f_perp = f_x = 0.0
+    s = math.log(gap)
+    k = min(max(int((s - grid[0]) / grid[1]), 0), int(grid[2]) - 2)
+    h = s - (grid[0] + k * grid[1])
+    e_par = e_perp = e_x = 0.0
+    if near_code != 1:
+        e_par += _cubic(coefficients, 0, k, h)
+        e_perp += _cubic(coefficients, 1, k, h)
+        e_x += _cubic(coefficients, 2, k, h)
+    if near_code != 0:
+        e_par += _cubic(coefficients, 3, k, h)
+        e_perp += _cubic(coefficients, 4, k, h)
+        e_x += _cubic(coefficients, 5, k, h)
+    if want_icep:
+        f1 += _cubic(stress_coefficients, 0, k, h)
+        f2 += _cubic(stress_coefficients, 1, k, h)
+        f3 += _cubic(stress_coefficients, 2, k, h)
+        f4 += _cubic(stress_coefficients, 3, k, h)
+    if want_dep:
+        g2 += _cubic(stress_coefficients, 4, k, h)
+        g3 += _cubic(stress_coefficients, 5, k, h)
+        g4 += _cubic(stress_coefficients, 6, k, h)
+        f_par = _cubic(stress_coefficients, 7, k, h)
+        f_perp = _cubic(stress_coefficients, 8, k, h)
+        f_x = _cubic(stress_coefficients, 9, k, h)
+    return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
+
+
 @njit(cache=True)
 def _pair_functions(
     r: float, near_code: int, want_icep: bool, want_dep: bool, tables
@@ -178,31 +220,7 @@ def _pair_functions(
             )
             f_par, f_perp, f_x = dep_force_kernel(r, stress_grid, stress_coefficients, stress_asymptotics)
         return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
-    s = math.log(gap)
-    k = min(max(int((s - grid[0]) / grid[1]), 0), int(grid[2]) - 2)
-    h = s - (grid[0] + k * grid[1])
-    e_par = e_perp = e_x = 0.0
-    if near_code != 1:
-        e_par += _cubic(coefficients, 0, k, h)
-        e_perp += _cubic(coefficients, 1, k, h)
-        e_x += _cubic(coefficients, 2, k, h)
-    if near_code != 0:
-        e_par += _cubic(coefficients, 3, k, h)
-        e_perp += _cubic(coefficients, 4, k, h)
-        e_x += _cubic(coefficients, 5, k, h)
-    if want_icep:
-        f1 += _cubic(stress_coefficients, 0, k, h)
-        f2 += _cubic(stress_coefficients, 1, k, h)
-        f3 += _cubic(stress_coefficients, 2, k, h)
-        f4 += _cubic(stress_coefficients, 3, k, h)
-    if want_dep:
-        g2 += _cubic(stress_coefficients, 4, k, h)
-        g3 += _cubic(stress_coefficients, 5, k, h)
-        g4 += _cubic(stress_coefficients, 6, k, h)
-        f_par = _cubic(stress_coefficients, 7, k, h)
-        f_perp = _cubic(stress_coefficients, 8, k, h)
-        f_x = _cubic(stress_coefficients, 9, k, h)
-    return e_par, e_perp, e_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x
+    return _spline_functions(gap, near_code, want_icep, want_dep, grid, coefficients, stress_coefficients)
 
 
 @njit(cache=True, inline="always")
@@ -334,6 +352,7 @@ def add_pair_corrections(
     want_dep = dep_weight > 0.0
     volume = box_length**3
     e0, e1, e2 = e[0], e[1], e[2]
+    grid, coefficients, asymptotics, _, stress_coefficients, stress_asymptotics = tables
     # The two stresslet sums in the basis of add_basis, accumulated in scalars (module docstring):
     # sum_k (a1 T1 + a2 T2 + (a3 + a4 c^2) T3) = A1 T1 + (e P + P e) - (2/3) S2 I + M - (R/3) I, with
     # A1 = sum a1, P = sum a2 c xh, S2 = sum a2 c^2, M = sum (a3 + a4 c^2) xh xh, R = sum (a3 + a4 c^2).
@@ -352,9 +371,22 @@ def add_pair_corrections(
         x2 = -separations[k, 2] / r
         c = e0 * x0 + e1 * x1 + e2 * x2
         # velocity: w (exact - far) in the isotropic form, U_j = -U_i
-        (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
-            _pair_functions(r, near_code, want_icep, want_dep, tables)
-        )
+        if r <= grid[3] and r - 2.0 >= grid[4]:  # on the splines: most pairs
+            (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
+                _spline_functions(
+                    r - 2.0, near_code, want_icep, want_dep, grid, coefficients, stress_coefficients
+                )
+            )
+        elif r <= grid[3]:  # near contact, below the first node
+            (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
+                _near_contact_functions(
+                    r - 2.0, near_code, want_icep, want_dep, grid, asymptotics, stress_asymptotics
+                )
+            )
+        else:  # beyond the last node (only for a cut-off above it)
+            (exact_par, exact_perp, exact_x, f1, f2, f3, f4, g1, g2, g3, g4, f_par, f_perp, f_x) = (
+                _pair_functions(r, near_code, want_icep, want_dep, tables)
+            )
         far_par, far_perp, far_x = far_field_functions(r, far_code)
         radial = (exact_par - far_par) * c * c + (exact_perp - far_perp) * (1.0 - c * c)
         tangential = 2.0 * (exact_x - far_x) * c
