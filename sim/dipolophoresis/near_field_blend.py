@@ -353,7 +353,7 @@ def add_pair_corrections(
     volume = box_length**3
     e0, e1, e2 = e[0], e[1], e[2]
     grid, coefficients, asymptotics, _, stress_coefficients, stress_asymptotics = tables
-    # The two stresslet sums in the basis of add_basis, accumulated in scalars (module docstring):
+    # The two stresslet sums in the basis T1..T4 of near_field_stress.add_basis, accumulated in scalars:
     # sum_k (a1 T1 + a2 T2 + (a3 + a4 c^2) T3) = A1 T1 + (e P + P e) - (2/3) S2 I + M - (R/3) I, with
     # A1 = sum a1, P = sum a2 c xh, S2 = sum a2 c^2, M = sum (a3 + a4 c^2) xh xh, R = sum (a3 + a4 c^2).
     # Slot 0 ICEP, slot 1 DEP-induced; the DEP virial in its six independent components.
