@@ -9,21 +9,22 @@ a controller's or constant field's point (``DIR/points/<label>.json``). A row's 
 (its seeds' and realisations' episodes, those of ``--split``) are averaged first; the two rows must cover
 the same states. Printed (Markdown): per row the mean over states of the whole-episode return, the excess
 ``eta_r`` over the cap and the field energy ``<eps E0^2>`` (``eta gammadot_ref``); then A - B, paired per
-state, with 95% percentile-bootstrap intervals over the states (NumPy's generator seeded with 0, 10^4
-resamples; the same resampling as :func:`agents.comparison.energy_target`, which gives the energy saving
-of A against B, ``1 - sum E_A / sum E_B``), and the number of states where A is higher.
+state, with the 95% bootstrap intervals over the states of :func:`agents.statistics.interval_estimates`
+(the intervals of ``agents.evaluate``'s gaps paired per state), the energy saving of A against B,
+``1 - sum E_A / sum E_B``, from :func:`agents.comparison.energy_target`, and the number of states where A
+is higher.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 
 import numpy as np
 
 from agents.comparison import energy_target
+from agents.statistics import interval_estimates
 
 QUANTITIES = ("return", "excess_viscosity", "energy_mean")
 
@@ -41,16 +42,6 @@ def per_state(files: list[Path], split: str) -> dict[int, dict[str, float]]:
     return {index: {q: float(np.mean(v)) for q, v in values.items()} for index, values in pooled.items()}
 
 
-def bootstrap_mean(values: np.ndarray, resamples: int = 10_000) -> tuple[float, float, float]:
-    """Mean of ``values`` with its 95% percentile-bootstrap interval (seeded with 0)."""
-    if values.size < 2:
-        return float(values.mean()) if values.size else math.nan, math.nan, math.nan
-    rng = np.random.default_rng(0)
-    means = values[rng.integers(0, values.size, size=(resamples, values.size))].mean(axis=1)
-    low, high = np.percentile(means, [2.5, 97.5])
-    return float(values.mean()), float(low), float(high)
-
-
 def compare(a: dict[int, dict[str, float]], b: dict[int, dict[str, float]]) -> dict[str, dict[str, float]]:
     """A - B per quantity, paired over the states both rows hold (raises if they hold different states)."""
     if set(a) != set(b):
@@ -59,13 +50,13 @@ def compare(a: dict[int, dict[str, float]], b: dict[int, dict[str, float]]) -> d
     out: dict[str, dict[str, float]] = {}
     for q in QUANTITIES:
         gaps = np.array([a[s][q] - b[s][q] for s in states])
-        mean, low, high = bootstrap_mean(gaps)
+        stats = interval_estimates(gaps)
         out[q] = {
             "a": float(np.mean([a[s][q] for s in states])),
             "b": float(np.mean([b[s][q] for s in states])),
-            "gap": mean,
-            "low": low,
-            "high": high,
+            "gap": stats["mean"],
+            "low": stats["ci_low"],
+            "high": stats["ci_high"],
             "states_higher": int((gaps > 0).sum()),
         }
     target = energy_target(
