@@ -102,8 +102,16 @@ def main(argv: list[str] | None = None) -> int:
     names = tuple(args.names.split(","))
     if len(names) != 2:
         parser.error(f"--names takes two comma-separated names, got {args.names!r}")
+    rows = []
+    for option, files in (("--a", args.a), ("--b", args.b)):
+        try:
+            rows.append(per_state(files, args.split))
+        except (OSError, ValueError, KeyError, TypeError) as error:  # missing, unreadable or not a run file
+            parser.error(f"{option}: cannot read the episodes of {[str(f) for f in files]}: {error!r}")
+        if not rows[-1]:
+            parser.error(f"{option}: no episodes of split {args.split!r} in {[str(f) for f in files]}")
     try:
-        result = compare(per_state(args.a, args.split), per_state(args.b, args.split))
+        result = compare(rows[0], rows[1])
     except ValueError as error:
         parser.error(str(error))
     print(table(result, (names[0], names[1])))

@@ -65,3 +65,19 @@ def test_different_states_are_refused(tmp_path: Path) -> None:
     b = paired_rows.per_state([_write(tmp_path / "b.json", [_episode(1, 1.0)])], "test")
     with pytest.raises(ValueError, match="different states"):
         paired_rows.compare(a, b)
+
+
+@pytest.mark.parametrize("bad", ["missing", "not_json", "no_episodes", "other_split"])
+def test_bad_files_exit_2_naming_the_option(tmp_path: Path, capsys, bad: str) -> None:
+    good = _write(tmp_path / "good.json", [_episode(0, 1.0)])
+    path = tmp_path / "bad.json"
+    if bad == "not_json":
+        path.write_text("{")
+    elif bad == "no_episodes":
+        path.write_text(json.dumps({"label": "x"}))
+    elif bad == "other_split":
+        _write(path, [_episode(0, 1.0, split="validation")])
+    with pytest.raises(SystemExit) as exit_info:
+        paired_rows.main(["--a", str(good), "--b", str(path)])
+    assert exit_info.value.code == 2
+    assert "--b" in capsys.readouterr().err
