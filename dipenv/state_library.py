@@ -69,6 +69,7 @@ PHYSICS_EXCLUDED = frozenset(
         "sweep.py",
         "sweep_figures.py",
         "tasks.py",
+        "runs/",
     }
 )
 """Files of ``sim/`` (paths relative to it; a trailing ``/`` names a whole subpackage) that do not shape a

@@ -12,7 +12,7 @@ from sim.numba_cache import configure_numba_cache
 
 NUMBA_CACHE_DIR = configure_numba_cache()
 
-from sim.config import MECHANISMS, NEAR_FIELD_MODELS, SimulationConfig
+from sim.config import MAX_SHEAR_RATE, MECHANISMS, MIN_SHEAR_RATE, NEAR_FIELD_MODELS, SimulationConfig
 from sim.geometry.box import LeesEdwardsBox
 from sim.geometry.configurations import box_length_for, random_packing
 from sim.io import versions
@@ -40,6 +40,8 @@ __all__ = [
     "ramp",
     "schedule_from_segments",
     "MECHANISMS",
+    "MAX_SHEAR_RATE",
+    "MIN_SHEAR_RATE",
     "NEAR_FIELD_MODELS",
     "STRESS_CONTRIBUTIONS",
     "BlockAverage",

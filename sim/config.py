@@ -54,10 +54,30 @@ def _check_range(name: str, value: float, low: float, high: float, low_open: boo
         raise ValueError(f"{name} must be in {left}{low}, {high}{right}, got {value!r}")
 
 
+MIN_SHEAR_RATE = 1e-3
+"""Smallest non-zero shear rate a run accepts (units ``gammadot_ref``). ``eta_r = Sigma_xy/(eta gammadot)``
+divides the stress by the rate: below it the field's and the repulsion's rate-independent stresses
+(order ``eps E0^2`` and ``F0/a^2``) make eta_r meaningless (a rate of 1e-9 gave eta_r = -2.7e7), and a
+strain would take more than 10^3 time units of dipolophoretic steps. A rate of exactly 0 is a quiescent
+run (field only), whose stress is reported in ``eps E0^2``."""
+
+MAX_SHEAR_RATE = 1e3
+"""Largest shear rate a run accepts (units ``gammadot_ref``): the step resolves the flow with a
+displacement bound, so the steps per unit time grow with the rate; at 10^3 a unit of time already takes
+~10^5 steps of the default size, and faster rates are typos of a rate schedule."""
+
+
 def check_shear_rate(shear_rate: float, name: str = "shear_rate") -> None:
-    """Raise ``ValueError`` naming ``name`` unless ``shear_rate`` is a finite number >= 0 (units
-    ``gammadot_ref``)."""
-    _check_range(name, shear_rate, 0.0, math.inf, False, True)
+    """Raise ``ValueError`` naming ``name`` unless ``shear_rate`` is 0 (quiescent) or a finite number in
+    [:data:`MIN_SHEAR_RATE`, :data:`MAX_SHEAR_RATE`] (units ``gammadot_ref``)."""
+    number = isinstance(shear_rate, int | float) and not isinstance(shear_rate, bool)
+    ok = number and math.isfinite(shear_rate)
+    if ok and (shear_rate == 0.0 or MIN_SHEAR_RATE <= shear_rate <= MAX_SHEAR_RATE):
+        return
+    raise ValueError(
+        f"{name} must be 0 (quiescent) or in [{MIN_SHEAR_RATE:g}, {MAX_SHEAR_RATE:g}] (units gammadot_ref), "
+        f"got {shear_rate!r}"
+    )
 
 
 @dataclass(frozen=True)
