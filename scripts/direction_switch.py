@@ -1,0 +1,165 @@
+"""Switching time of the field's direction (issue 44): from a steady state, turn the field and time eta_r.
+
+Takes the end state of a steady run (a ``sim run``/``sim sweep`` point folder of the direction map: its
+``final_state.npz`` and ``params.json``), turns the field to ``--direction`` at the same Mason number
+(strain 0 of the switch), shears on for ``--strain`` and records eta_r, N1 and N2 per step. The switching
+strain is fitted to the binned eta_r as a single exponential,
+
+    eta_r(gamma) = eta_inf + (eta_0 - eta_inf) exp(-gamma / gamma_s),
+
+(``scipy.optimize.curve_fit``), and reported with ``gamma_90 = gamma_s ln 10``, the strain to cover 90% of
+the change, and the strain at which the binned eta_r first crosses half-way (model free).
+
+Writes ``OUT/switch.csv`` (strain since the switch, eta_r, N1, N2 per bin of ``--bin`` strain),
+``OUT/fit.json`` and ``OUT/manifest.json``. A pure function of its inputs. Usage::
+
+    python scripts/direction_switch.py --from runs/direction_map/phi0.45_y/phi0.450_N500_Mn1_seed1 \\
+        --direction 0,0,1 --strain 15 --out runs/direction_switch/y_to_z_Mn1_seed1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import sim
+from sim.io import read_json, write_json, write_text_atomically
+from sim.runs import RunFolderError, claim
+
+
+def binned(
+    strain: np.ndarray, dt: np.ndarray, values: np.ndarray, width: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Step-weighted means of ``values`` (steps x k) in bins of ``width`` strain (``dt``: each step's strain):
+    (bin centres, means)."""
+    edges = np.arange(0.0, strain[-1] + dt[-1] + 1e-12, width)
+    index = np.clip(np.searchsorted(edges, strain, side="right") - 1, 0, len(edges) - 2)
+    weights = np.bincount(index, dt, minlength=len(edges) - 1)
+    means = np.stack(
+        [np.bincount(index, dt * values[:, k], minlength=len(edges) - 1) for k in range(values.shape[1])],
+        axis=1,
+    )
+    keep = weights > 0
+    return 0.5 * (edges[:-1] + edges[1:])[keep], means[keep] / weights[keep, None]
+
+
+def fit_switch(gamma: np.ndarray, eta: np.ndarray) -> dict[str, float]:
+    """Least-squares single-exponential fit (module docstring) and the model-free half-way strain."""
+    from scipy.optimize import curve_fit
+
+    def model(g: np.ndarray, eta_inf: float, eta_0: float, scale: float) -> np.ndarray:
+        return eta_inf + (eta_0 - eta_inf) * np.exp(-g / scale)
+
+    tail = eta[len(eta) * 2 // 3 :].mean()
+    guess = (tail, eta[0], 1.0)
+    try:
+        bounds = ([-np.inf, -np.inf, 1e-3], [np.inf, np.inf, 1e3])
+        params, cov = curve_fit(model, gamma, eta, p0=guess, bounds=bounds)
+        errors = np.sqrt(np.diag(cov))
+    except RuntimeError:
+        params, errors = np.full(3, math.nan), np.full(3, math.nan)
+    halfway = 0.5 * (eta[0] + tail)
+    rising = tail > eta[0]
+    crossed = np.nonzero(eta >= halfway if rising else eta <= halfway)[0]
+    return {
+        "eta_0": float(params[1]),
+        "eta_inf": float(params[0]),
+        "eta_inf_error": float(errors[0]),
+        "gamma_s": float(params[2]),
+        "gamma_s_error": float(errors[2]),
+        "gamma_90": float(params[2] * math.log(10.0)),
+        "gamma_half_crossing": float(gamma[crossed[0]]) if crossed.size else math.nan,
+        "eta_tail_mean": float(tail),
+    }
+
+
+def _direction(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be three comma-separated numbers, got {text!r}") from None
+    if len(values) != 3 or not all(math.isfinite(v) for v in values) or not any(values):
+        raise argparse.ArgumentTypeError(f"must be three finite numbers, not all zero, got {text!r}")
+    return values  # type: ignore[return-value]
+
+
+def _positive(text: str) -> float:
+    value = float(text)
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0], allow_abbrev=False)
+    parser.add_argument("--from", dest="source", required=True, type=Path, help="steady run folder")
+    parser.add_argument("--direction", required=True, type=_direction, help="new field direction x,y,z")
+    parser.add_argument("--strain", type=_positive, default=15.0, help="strain after the switch (default 15)")
+    parser.add_argument("--bin", type=_positive, default=0.5, help="bin width of switch.csv in strain (0.5)")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument("--overwrite", action="store_true", help="delete the folder's previous run first")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        params = read_json(args.source / "params.json")
+        config = sim.SimulationConfig.from_dict(params["config"])
+        state = sim.SimulationState.load(args.source / "final_state.npz")
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        parser.exit(2, f"direction_switch.py: error: --from {args.source}: not a finished run ({exc})\n")
+    if math.isinf(config.mason_number) or config.shear_rate == 0.0:
+        parser.exit(
+            2, f"direction_switch.py: error: --from {args.source}: needs a sheared run with a field\n"
+        )
+    identity = {
+        "source": str(args.source.resolve()),
+        "source_config": config.to_dict(),
+        "direction": list(args.direction),
+        "strain": args.strain,
+        "bin": args.bin,
+    }
+    try:
+        claim(args.out, "scripts/direction_switch.py", identity, overwrite=args.overwrite, argv=sys.argv)
+    except RunFolderError as exc:
+        parser.exit(2, f"direction_switch.py: error: {exc}\n")
+    if (args.out / "fit.json").exists():
+        return read_json(args.out / "fit.json")
+    simulation = sim.Simulation(config, state, keep_records=True)
+    before = simulation.field[1]
+    simulation.set_field(config.mason_number, args.direction)
+    start = simulation.state.strain
+    simulation.advance_to(simulation.state.time + args.strain / simulation.shear_rate)
+    records = simulation.records
+    eta, n1, n2 = records.rheology()
+    strain_steps = records.time_step * records.shear_rate
+    gamma, means = binned(records.strain - start, strain_steps, np.stack([eta, n1, n2], axis=1), args.bin)
+    lines = ["strain_since_switch,eta_r,n1,n2"] + [
+        f"{g:.6g},{m[0]:.6g},{m[1]:.6g},{m[2]:.6g}" for g, m in zip(gamma, means, strict=True)
+    ]
+    write_text_atomically(args.out / "switch.csv", "\n".join(lines) + "\n")
+    result = {
+        "from_direction": [float(v) for v in before],
+        "to_direction": [float(v) for v in simulation.field[1]],
+        "mason_number": config.mason_number,
+        "volume_fraction": config.volume_fraction,
+        "n_particles": config.n_particles,
+        "seed": config.seed,
+        **fit_switch(gamma, means[:, 0]),
+    }
+    write_json(args.out / "fit.json", result)
+    print(json.dumps(result))
+    return result
+
+
+if __name__ == "__main__":
+    main()
