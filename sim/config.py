@@ -80,6 +80,32 @@ def check_shear_rate(shear_rate: float, name: str = "shear_rate") -> None:
     )
 
 
+def _unit_direction(value: Any) -> tuple[float, float, float]:
+    """``value`` divided by its length; ``ValueError`` naming ``field_direction`` unless it is three finite
+    numbers, not all zero.
+
+    Ordinary vectors are divided by ``sqrt(sum e_i^2)``. When that sum would overflow or underflow (length
+    outside ``(1e-150, 1e150)``), the components are first divided by the largest of them, so that a huge
+    vector does not become ``(0, 0, 0)`` (``inf`` length) and a tiny one is neither refused as zero nor left
+    off unit length by subnormal squares.
+    """
+    message = f"field_direction must be three finite numbers, not all zero, got {value!r}"
+    if isinstance(value, str | bytes):
+        raise ValueError(message)
+    try:
+        direction = tuple(float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ValueError(message) from None
+    if len(direction) != 3 or not all(math.isfinite(c) for c in direction) or not any(direction):
+        raise ValueError(message)
+    norm = math.sqrt(sum(c * c for c in direction))
+    if not 1e-150 < norm < 1e150:
+        largest = max(abs(c) for c in direction)
+        direction = tuple(c / largest for c in direction)
+        norm = math.sqrt(sum(c * c for c in direction))
+    return (direction[0] / norm, direction[1] / norm, direction[2] / norm)
+
+
 @dataclass(frozen=True)
 class SimulationConfig:
     """Parameters of one run; a run is a pure function of this object (it includes the seed).
@@ -182,13 +208,7 @@ class SimulationConfig:
                 "mason_number must be finite when shear_rate = 0: a quiescent run needs the field "
                 "(mason_number = inf means no field)"
             )
-        direction = tuple(float(c) for c in self.field_direction)
-        norm = math.sqrt(sum(c * c for c in direction))
-        if len(direction) != 3 or not all(math.isfinite(c) for c in direction) or norm == 0.0:
-            raise ValueError(
-                f"field_direction must be three finite numbers, not all zero, got {self.field_direction!r}"
-            )
-        object.__setattr__(self, "field_direction", tuple(c / norm for c in direction))
+        object.__setattr__(self, "field_direction", _unit_direction(self.field_direction))
         _check_range("strain", self.strain, 0.0, math.inf, False, True)
         if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
             raise ValueError(f"seed must be a non-negative integer, got {self.seed!r}")
