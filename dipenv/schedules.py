@@ -6,13 +6,17 @@ process would see it: a hold at a rate drawn log-uniformly in ``[rate_min, rate_
 drawn uniformly in ``hold_range``, then a ramp (linear in time) to a new log-uniform rate over a duration
 in ``ramp_range``, then a hold, and so on until the episode is covered.
 
-Training episodes draw their schedule with the environment's ``np_random``. The validation and test
-splits use fixed schedules (:func:`fixed_schedules`), shipped as package data
+Training episodes draw their schedule with the environment's ``np_random``. The validation, test and
+fresh splits use fixed schedules (:func:`fixed_schedules`), shipped as package data
 (``dipenv/data/schedules.json``, made by :func:`write_fixed_schedules` from fixed seeds) so that every
-controller, in every version, meets the same ones. The test schedules are the first draws of their seeds.
-The validation schedules are stratified by mean rate (:func:`split_seeds`): from a pool of draws, the
-ones at the midpoints of equal-count bins of the pool's mean rates, so that tuning on 8 schedules sees
-the generator's spread of rates (8 plain draws had a mean rate of 0.86 against the generator's 1.49).
+controller, in every version, meets the same ones. The test and fresh schedules are the first draws of
+their seeds. The validation schedules are stratified by mean rate (:func:`split_seeds`): from a pool of
+draws, the ones at the midpoints of equal-count bins of the pool's mean rates, so that tuning on 8
+schedules sees the generator's spread of rates (8 plain draws had a mean rate of 0.86 against the
+generator's 1.49).
+
+The ``fresh`` split (:data:`FRESH_SPLIT`, issue 43) is held out from every decision: nothing is tuned,
+selected or designed on it; it is played only in the final evaluation (``docs/thickening_control.md``).
 
 Every schedule a user passes (``reset(options={"schedule": ...})``) and every shipped one goes through
 :func:`validate_schedule`, the one check. :func:`schedule_window` gives the environments an exact,
@@ -42,9 +46,18 @@ HOLD_RANGE = (1.0, 4.0)
 """Durations of the holds (time units), drawn uniformly."""
 RAMP_RANGE = (0.5, 2.0)
 """Durations of the ramps (time units), drawn uniformly."""
-FIXED_SPLITS = {"validation": (8, 1_000), "test": (16, 2_000)}
-"""Fixed schedules per split: (count, seed of the first draw). Test schedule k uses seed + k; the
-validation schedules are chosen from the draws of seeds ``seed .. seed + pool - 1``
+FRESH_SPLIT = "fresh"
+"""The held-out split of the final evaluation (issue 43): no tuning, selection or design decision may look
+at it."""
+FRESH_SCHEDULES = (128, 3_000_000)
+"""The fresh split's schedules: (count, seed of the first draw); schedule k is the plain draw of seed
+``3_000_000 + k``. The base is far beyond every seed another split can reach: validation draws from
+1000 and test from 2000, and a split enlarged past its shipped schedules (``split_sizes`` up to
+:data:`dipenv.state_library.MAX_SPLIT_SIZE` = 100,000) draws ``seed + pool + index``, so below 102,000.
+128 schedules are shipped so that an evaluation can take the first ``n`` (64 or more) and still grow."""
+FIXED_SPLITS = {"validation": (8, 1_000), "test": (16, 2_000), FRESH_SPLIT: FRESH_SCHEDULES}
+"""Fixed schedules per split: (count, seed of the first draw). Test and fresh schedule k use seed + k;
+the validation schedules are chosen from the draws of seeds ``seed .. seed + pool - 1``
 (:data:`STRATIFIED_POOLS`, :func:`split_seeds`)."""
 STRATIFIED_POOLS = {"validation": 64}
 """Pool size of the splits whose schedules are stratified by mean rate."""
@@ -313,14 +326,24 @@ def schedule_from_dict(data: Any) -> sim.PiecewiseLinear:
 
 
 def write_fixed_schedules(path: str | Path, duration: float = 12.0) -> None:
-    """Write the fixed validation and test schedules (:data:`FIXED_SPLITS`) covering ``duration``."""
+    """Write the fixed validation, test and fresh schedules (:data:`FIXED_SPLITS`) covering ``duration``,
+    with the generator's parameters and each split's count, first seed and rule."""
     out: dict[str, Any] = {
         "duration": duration,
         "rate_range": list(RATE_RANGE),
         "hold_range": list(HOLD_RANGE),
         "ramp_range": list(RAMP_RANGE),
         "generator": "dipenv.schedules.draw_schedule(np.random.default_rng(seed), duration)",
-        "seeds": "dipenv.schedules.split_seeds(split, duration): test seed + k, validation by mean rate",
+        "seeds": (
+            "dipenv.schedules.split_seeds(split, duration): test and fresh seed + k, validation by mean rate"
+        ),
+        "splits": {
+            split: {"count": count, "first_seed": seed, "pool": STRATIFIED_POOLS.get(split)}
+            for split, (count, seed) in FIXED_SPLITS.items()
+        },
+        "held_out": {
+            FRESH_SPLIT: "played only in the final evaluation; never tuned, selected or designed on"
+        },
     }
     for split in FIXED_SPLITS:
         out[split] = [
@@ -331,7 +354,7 @@ def write_fixed_schedules(path: str | Path, duration: float = 12.0) -> None:
 
 
 def fixed_schedules(split: str) -> list[sim.PiecewiseLinear]:
-    """The shipped schedules of ``split`` (``validation`` or ``test``)."""
+    """The shipped schedules of ``split`` (``validation``, ``test`` or ``fresh``)."""
     if split not in FIXED_SPLITS:
         raise ValueError(f"split must be one of {', '.join(FIXED_SPLITS)} for fixed schedules, got {split!r}")
     return list(_shipped_schedules(split))

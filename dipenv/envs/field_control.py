@@ -113,10 +113,13 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         energy_weight: w_E of the reward.
         failure_penalty: reward per failed or lost step on a simulator failure.
         history_length: previous observation frames appended to the current one (0 = none).
-        split: start-state split for resets without ``options["split"]``.
+        split: start-state split for resets without ``options["split"]`` (train, validation, test or
+            fresh: the held-out split of the final evaluation, docs/thickening_control.md#the-fresh-split).
         start_state: ``"random"`` (drawn with ``self.np_random``) or ``"cycle"`` (0, 1, 2, ... in turn:
             every state of the split once per cycle, for evaluation).
-        split_sizes: states per split of the library (default 64 / 8 / 16).
+        split_sizes: states per split of the library (default train 64, validation 8, test 16; fresh
+            optional, default 128, :data:`dipenv.state_library.DEFAULT_FRESH_SIZE`). A state is generated
+            when a reset first asks for it (or by ``library().ensure``), so a size costs nothing by itself.
         preshear_strain: strain of pure shear that prepares each start state.
         solver_tolerance, ewald_accuracy, near_field, near_field_cutoff, time_step, max_displacement:
             passed to :class:`sim.SimulationConfig` (``ewald_accuracy`` defaults to
@@ -182,8 +185,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if split_sizes is not None:
-            check_split_sizes(split_sizes)
+        resolved_sizes = check_split_sizes(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
         # Numbers are checked here, by name: a string or a bool used to reach float() or a comparison
         # (Python's message), and a zero pre-shear or a negative target were accepted.
         mason_min = real_number("mason_min", mason_min, 0.0, low_open=True)
@@ -214,7 +216,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         self.history_length = history_length
         self.split = split
         self.start_state = start_state
-        self.split_sizes = dict(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
+        self.split_sizes = resolved_sizes
         self.preshear_strain = preshear_strain
         self.progress = progress
         self.render_mode = render_mode
@@ -339,7 +341,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         """Start an episode from a pre-sheared state (field off).
 
         ``options`` (:attr:`reset_options`; checked first, so that a refused reset changes nothing):
-        ``split`` (train/validation/test), ``index`` (state within the split; default drawn
+        ``split`` (train/validation/test/fresh), ``index`` (state within the split; default drawn
         with ``self.np_random``, or the next in turn with ``start_state="cycle"``), ``volume_fraction``,
         ``realisation`` (integer >= 0, default 0: the state moved by 1e-9 a with a displacement fixed by
         ``(split, index, realisation)``, for independent repeats of one episode; 0 is the stored state

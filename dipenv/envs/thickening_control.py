@@ -97,8 +97,10 @@ class ThickeningControlEnv(FieldControlEnv):
 
     A pre-sheared state of the start-state library, as ``FieldMagnitude-v0``, field off, the rate set
     to the schedule's first value. Training episodes draw their schedule with ``self.np_random``; the
-    validation and test splits pair start state ``k`` with fixed schedule ``k``
-    (:func:`dipenv.schedules.fixed_schedules`), so every controller meets the same episodes.
+    validation, test and fresh splits pair start state ``k`` with fixed schedule ``k``
+    (:func:`dipenv.schedules.fixed_schedules`), so every controller meets the same episodes. The fresh
+    split is held out: played only in the final evaluation, never tuned, selected or designed on
+    (``docs/thickening_control.md#the-fresh-split``).
     ``reset(options={"schedule": {"times": [...], "rates": [...]}})`` runs a schedule of your own,
     checked by :func:`dipenv.schedules.validate_schedule` before anything changes: times from 0 (the
     episode start), strictly increasing; rates in ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]``; at most
@@ -129,7 +131,8 @@ class ThickeningControlEnv(FieldControlEnv):
       THICKENING_V2_KWARGS`): fields below 0.1 cost more energy per interval than the largest excess
       eta_r they could remove, and were the slowest to simulate. Physics, schedules and start states are
       v1's.
-    * 2026-12-07, every version: schedules and reset options are checked before anything changes, and
+    * 2026-12-07, every version: the ``fresh`` split (128 schedules and start states, held out for the
+      final evaluation; issue 43); schedules and reset options are checked before anything changes, and
       a schedule rate must lie in the simulator's range (rate 0 and 1e-9 are refused; issue 45). The
       episodes of every accepted input are unchanged.
     """
@@ -208,7 +211,7 @@ class ThickeningControlEnv(FieldControlEnv):
         return settings
 
     def fixed_schedule(self, split: str, index: int) -> sim.PiecewiseLinear:
-        """Schedule ``index`` of a validation or test split: the shipped one when this env has the
+        """Schedule ``index`` of a validation, test or fresh split: the shipped one when this env has the
         default schedule parameters and episode duration, else drawn from the same seed with this env's.
         ``ValueError`` for the train split (its episodes draw their schedules) or an index outside the
         split's states (``split_sizes``)."""
