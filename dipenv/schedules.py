@@ -198,8 +198,9 @@ def validate_schedule(data: Any, name: str = "schedule") -> sim.PiecewiseLinear:
 
     * between 1 and :data:`MAX_SCHEDULE_KNOTS` knots, as many times as rates;
     * real numbers only (no strings, booleans, ``None`` or nested lists);
-    * times finite, the first 0 (the episode start) and strictly increasing: a jump of the rate is a ramp
-      of your chosen (short) duration;
+    * times finite, the first 0 (the episode start), and increasing, except that two knots at one time
+      make a jump of the rate (as in :class:`sim.PiecewiseLinear`; the agents' tests step the rate so):
+      never at time 0, where the rate before the jump would never apply, and never three at one time;
     * rates finite and within ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]`` = [1e-3, 1e3] ``gammadot_ref``,
       the simulator's range. Rate 0 is refused: a thickening schedule needs shear. Its reward charges
       ``eta_r = Sigma_xy / (eta gammadot)``, which has no value without flow, and its episodes start with
@@ -240,11 +241,22 @@ def validate_schedule(data: Any, name: str = "schedule") -> sim.PiecewiseLinear:
     if times[0] != 0.0:
         raise ValueError(f"{name}: times must start at 0 (the episode start), got {times[0]!r}")
     steps = np.diff(times_array)
-    if np.any(steps <= 0.0):
-        k = int(np.flatnonzero(steps <= 0.0)[0]) + 1
+    if np.any(steps < 0.0):
+        k = int(np.flatnonzero(steps < 0.0)[0]) + 1
         raise ValueError(
-            f"{name}: times must increase strictly (a jump of the rate is a short ramp), got "
-            f"times[{k}] = {times[k]!r} after {times[k - 1]!r}"
+            f"{name}: times must increase (two equal times make a jump), got times[{k}] = {times[k]!r} "
+            f"after {times[k - 1]!r}"
+        )
+    if len(times) > 1 and times[1] == 0.0:
+        raise ValueError(
+            f"{name}: no jump at time 0 (the rate before it would never apply): start with the rate after "
+            f"it, got times {times[:3]!r}"
+        )
+    repeated = (steps[:-1] == 0.0) & (steps[1:] == 0.0)
+    if np.any(repeated):
+        k = int(np.flatnonzero(repeated)[0])
+        raise ValueError(
+            f"{name}: at most two knots may share a time (a jump), got three at times[{k}] = {times[k]!r}"
         )
     low, high = sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE
     outside = ~(np.isfinite(rates_array) & (rates_array >= low) & (rates_array <= high))

@@ -103,8 +103,9 @@ class ThickeningControlEnv(FieldControlEnv):
     (``docs/thickening_control.md#the-fresh-split``).
     ``reset(options={"schedule": {"times": [...], "rates": [...]}})`` runs a schedule of your own,
     checked by :func:`dipenv.schedules.validate_schedule` before anything changes: times from 0 (the
-    episode start), strictly increasing; rates in ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]``; at most
-    :data:`dipenv.schedules.MAX_SCHEDULE_KNOTS` knots, which cost no more per interval than a few.
+    episode start), increasing (two equal times make a jump); rates in
+    ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]``; at most :data:`dipenv.schedules.MAX_SCHEDULE_KNOTS`
+    knots, which cost no more per interval than a few.
 
     ## Episode End
 
