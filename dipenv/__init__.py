@@ -117,7 +117,13 @@ _SPECS = {
 }
 """Entry point and keyword arguments of each id. No ``max_episode_steps``: each env truncates itself after
 its own ``episode_steps`` (``gym.make(id, episode_steps=20)`` gives 20-action episodes, as ``settings()``
-says; a registered time limit would cut them at the registered length instead)."""
+says; a registered time limit would cut them at the registered length instead).
+
+The ids register with ``disable_env_checker=True``: Gymnasium's ``PassiveEnvChecker`` (1.4) marks its
+one reset check done before the env's ``reset`` returns, so a refused first reset (bad options) left it
+without the data its first-step check unpacks, and the next valid ``step`` failed with ``TypeError:
+cannot unpack non-iterable NoneType``, although the env refuses before changing anything. The tests run
+Gymnasium's full ``check_env`` and SB3's on every id instead (``tests/test_dipenv.py``)."""
 
 ENV_IDS = tuple(_SPECS)
 """Every registered id."""
@@ -128,4 +134,5 @@ for _env_id, (_cls, _kwargs) in _SPECS.items():
             id=_env_id,
             entry_point=_cls if ":" in _cls else f"dipenv.envs.field_control:{_cls}",
             kwargs=dict(_kwargs),
+            disable_env_checker=True,
         )

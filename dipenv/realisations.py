@@ -32,7 +32,7 @@ REALISATION_AMPLITUDE = 1e-9
 REALISATION_SEED = 20261204
 """First entry of the seed sequence of every realisation's displacement."""
 
-_SPLIT_NUMBERS = {"train": 0, "validation": 1, "test": 2}
+_SPLIT_NUMBERS = {"train": 0, "validation": 1, "test": 2, "fresh": 3}
 
 
 def perturbed_state(

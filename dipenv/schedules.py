@@ -6,17 +6,28 @@ process would see it: a hold at a rate drawn log-uniformly in ``[rate_min, rate_
 drawn uniformly in ``hold_range``, then a ramp (linear in time) to a new log-uniform rate over a duration
 in ``ramp_range``, then a hold, and so on until the episode is covered.
 
-Training episodes draw their schedule with the environment's ``np_random``. The validation and test
-splits use fixed schedules (:func:`fixed_schedules`), shipped as package data
+Training episodes draw their schedule with the environment's ``np_random``. The validation, test and
+fresh splits use fixed schedules (:func:`fixed_schedules`), shipped as package data
 (``dipenv/data/schedules.json``, made by :func:`write_fixed_schedules` from fixed seeds) so that every
-controller, in every version, meets the same ones. The test schedules are the first draws of their seeds.
-The validation schedules are stratified by mean rate (:func:`split_seeds`): from a pool of draws, the
-ones at the midpoints of equal-count bins of the pool's mean rates, so that tuning on 8 schedules sees
-the generator's spread of rates (8 plain draws had a mean rate of 0.86 against the generator's 1.49).
+controller, in every version, meets the same ones. The test and fresh schedules are the first draws of
+their seeds. The validation schedules are stratified by mean rate (:func:`split_seeds`): from a pool of
+draws, the ones at the midpoints of equal-count bins of the pool's mean rates, so that tuning on 8
+schedules sees the generator's spread of rates (8 plain draws had a mean rate of 0.86 against the
+generator's 1.49).
+
+The ``fresh`` split (:data:`FRESH_SPLIT`, issue 43) is held out from every decision: nothing is tuned,
+selected or designed on it; it is played only in the final evaluation (``docs/thickening_control.md``).
+
+Every schedule a user passes (``reset(options={"schedule": ...})``) and every shipped one goes through
+:func:`validate_schedule`, the one check. :func:`schedule_window` gives the environments an exact,
+short copy of the knots around one control interval, so that a long schedule costs no more per interval
+than a short one (``docs/thickening_control.md#long-schedules``).
 """
 
 from __future__ import annotations
 
+import bisect
+import functools
 import json
 import math
 from collections.abc import Sequence
@@ -27,6 +38,7 @@ from typing import Any
 import numpy as np
 
 import sim
+from dipenv.checks import is_real_number
 
 RATE_RANGE = (0.2, 5.0)
 """Shear rates of the schedules (units gammadot_ref), drawn log-uniformly."""
@@ -34,13 +46,28 @@ HOLD_RANGE = (1.0, 4.0)
 """Durations of the holds (time units), drawn uniformly."""
 RAMP_RANGE = (0.5, 2.0)
 """Durations of the ramps (time units), drawn uniformly."""
-FIXED_SPLITS = {"validation": (8, 1_000), "test": (16, 2_000)}
-"""Fixed schedules per split: (count, seed of the first draw). Test schedule k uses seed + k; the
-validation schedules are chosen from the draws of seeds ``seed .. seed + pool - 1``
+FRESH_SPLIT = "fresh"
+"""The held-out split of the final evaluation (issue 43): no tuning, selection or design decision may look
+at it."""
+FRESH_SCHEDULES = (128, 3_000_000)
+"""The fresh split's schedules: (count, seed of the first draw); schedule k is the plain draw of seed
+``3_000_000 + k``. The base is far beyond every seed another split can reach: validation draws from
+1000 and test from 2000, and a split enlarged past its shipped schedules (``split_sizes`` up to
+:data:`dipenv.state_library.MAX_SPLIT_SIZE` = 100,000) draws ``seed + pool + index``, so below 102,000.
+128 schedules are shipped so that an evaluation can take the first ``n`` (64 or more) and still grow."""
+FIXED_SPLITS = {"validation": (8, 1_000), "test": (16, 2_000), FRESH_SPLIT: FRESH_SCHEDULES}
+"""Fixed schedules per split: (count, seed of the first draw). Test and fresh schedule k use seed + k;
+the validation schedules are chosen from the draws of seeds ``seed .. seed + pool - 1``
 (:data:`STRATIFIED_POOLS`, :func:`split_seeds`)."""
 STRATIFIED_POOLS = {"validation": 64}
 """Pool size of the splits whose schedules are stratified by mean rate."""
 DATA_FILE = "schedules.json"
+MAX_SCHEDULE_KNOTS = 100_000
+"""The most knots a schedule may have (:func:`validate_schedule`). 100,000 knots over the standard
+12-time-unit episode are one every 1.2e-4 time units, 16 per simulator step (2e-3 at rate 1): detail
+finer than the simulator can follow (:func:`sim.follow` skips a piece that the previous step went
+past). A schedule at the cap costs about what a short one costs per interval (:func:`schedule_window`);
+the cap bounds the memory and the ``info["schedule"]`` copy made at every reset."""
 
 
 def _check_range(name: str, bounds: Sequence[float], lowest: float) -> tuple[float, float]:
@@ -133,6 +160,172 @@ def split_seeds(
     return [ranked[int((j + 0.5) * pool / count)] for j in spread_order(count)]
 
 
+_SCHEDULE_FORMS = (
+    "{'times': [...], 'rates': [...]} (lists of real numbers), a (times, rates) pair or a sim.PiecewiseLinear"
+)
+
+
+def _numbers(name: str, field: str, values: object) -> list[float]:
+    """``values`` (the ``field`` of the schedule ``name``) as a list of floats, or ``ValueError`` naming
+    both and what is wrong."""
+    if isinstance(values, np.ndarray):
+        if values.ndim != 1 or values.dtype.kind not in "iuf":
+            raise ValueError(
+                f"{name}: {field} must be a list of real numbers, got an array of shape {values.shape} and "
+                f"dtype {values.dtype}"
+            )
+        return [float(x) for x in values.tolist()]
+    if not isinstance(values, list | tuple):
+        raise ValueError(f"{name}: {field} must be a list of real numbers, got {_short(values)}")
+    for k, value in enumerate(values):
+        if not is_real_number(value):
+            raise ValueError(f"{name}: {field}[{k}] must be a real number, got {_short(value)}")
+    return [float(x) for x in values]
+
+
+def _short(value: object) -> str:
+    text = repr(value)
+    text = text if len(text) <= 80 else text[:77] + "..."
+    return f"{text} ({type(value).__name__})"
+
+
+def validate_schedule(data: Any, name: str = "schedule") -> sim.PiecewiseLinear:
+    """The one check of a shear-rate schedule: ``data`` as a :class:`sim.PiecewiseLinear`, or
+    ``ValueError`` naming ``name`` and what is wrong.
+
+    Accepted forms: ``{"times": [...], "rates": [...]}`` (exactly these keys; lists, tuples or 1-D numeric
+    arrays), a ``(times, rates)`` pair of such sequences, or a :class:`sim.PiecewiseLinear`. Rules:
+
+    * between 1 and :data:`MAX_SCHEDULE_KNOTS` knots, as many times as rates;
+    * real numbers only (no strings, booleans, ``None`` or nested lists);
+    * times finite, the first 0 (the episode start), and increasing, except that two knots at one time
+      make a jump of the rate (as in :class:`sim.PiecewiseLinear`; the agents' tests step the rate so):
+      never at time 0, where the rate before the jump would never apply, and never three at one time;
+    * rates finite and within ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]`` = [1e-3, 1e3] ``gammadot_ref``,
+      the simulator's range. Rate 0 is refused: a thickening schedule needs shear. Its reward charges
+      ``eta_r = Sigma_xy / (eta gammadot)``, which has no value without flow, and its episodes start with
+      the field off, where a quiescent suspension has nothing to move it. A rate below the floor
+      (1e-9 gave ``eta_r = -2.7e7``) divides a finite stress by nearly nothing.
+
+    The rate is linear between knots and holds its last value after the last knot.
+    """
+    if isinstance(data, sim.PiecewiseLinear):
+        times, rates = list(data.times), list(data.values)
+    elif isinstance(data, dict):
+        if set(data) != {"times", "rates"}:
+            raise ValueError(
+                f"{name} must have exactly the keys 'times' and 'rates', got keys {sorted(map(str, data))}"
+            )
+        times = _numbers(name, "times", data["times"])
+        rates = _numbers(name, "rates", data["rates"])
+    elif isinstance(data, list | tuple) and len(data) == 2:
+        times = _numbers(name, "times", data[0])
+        rates = _numbers(name, "rates", data[1])
+    else:
+        raise ValueError(f"{name} must be {_SCHEDULE_FORMS}, got {_short(data)}")
+    if not times or len(times) != len(rates):
+        raise ValueError(
+            f"{name} must have as many times as rates, at least one, got {len(times)} times and "
+            f"{len(rates)} rates"
+        )
+    if len(times) > MAX_SCHEDULE_KNOTS:
+        raise ValueError(
+            f"{name} has {len(times)} knots, more than the cap of {MAX_SCHEDULE_KNOTS} "
+            "(dipenv.schedules.MAX_SCHEDULE_KNOTS: finer than the simulator's step can follow)"
+        )
+    times_array = np.asarray(times)
+    rates_array = np.asarray(rates)
+    if not np.all(np.isfinite(times_array)):
+        k = int(np.flatnonzero(~np.isfinite(times_array))[0])
+        raise ValueError(f"{name}: times[{k}] must be finite, got {times[k]!r}")
+    if times[0] != 0.0:
+        raise ValueError(f"{name}: times must start at 0 (the episode start), got {times[0]!r}")
+    steps = np.diff(times_array)
+    if np.any(steps < 0.0):
+        k = int(np.flatnonzero(steps < 0.0)[0]) + 1
+        raise ValueError(
+            f"{name}: times must increase (two equal times make a jump), got times[{k}] = {times[k]!r} "
+            f"after {times[k - 1]!r}"
+        )
+    if len(times) > 1 and times[1] == 0.0:
+        raise ValueError(
+            f"{name}: no jump at time 0 (the rate before it would never apply): start with the rate after "
+            f"it, got times {times[:3]!r}"
+        )
+    repeated = (steps[:-1] == 0.0) & (steps[1:] == 0.0)
+    if np.any(repeated):
+        k = int(np.flatnonzero(repeated)[0])
+        raise ValueError(
+            f"{name}: at most two knots may share a time (a jump), got three at times[{k}] = {times[k]!r}"
+        )
+    low, high = sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE
+    outside = ~(np.isfinite(rates_array) & (rates_array >= low) & (rates_array <= high))
+    if np.any(outside):
+        k = int(np.flatnonzero(outside)[0])
+        why = (
+            " (a thickening schedule needs shear: eta_r = Sigma_xy / (eta gammadot) has no value without "
+            "flow, and the episode starts with the field off)"
+            if rates[k] == 0.0
+            else ""
+        )
+        raise ValueError(
+            f"{name}: rates[{k}] must be a finite rate in [sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE] = "
+            f"[{low:g}, {high:g}] gammadot_ref, got {rates[k]!r}{why}"
+        )
+    return sim.PiecewiseLinear(tuple(times), tuple(rates))
+
+
+class _IndexedSchedule(sim.PiecewiseLinear):
+    """A :class:`sim.PiecewiseLinear` whose look-ups bisect the knots (``O(log n)``) where the parent's
+    convert the knot tuple to an array (``np.searchsorted``) or scan it whole: the same arithmetic on the
+    same knots, so every value, mean and piece is the parent's bit for bit."""
+
+    def __call__(self, time: float) -> float:
+        times, values = self.times, self.values
+        if time < times[0]:
+            return values[0]
+        k = bisect.bisect_right(times, time) - 1
+        if k >= len(times) - 1:
+            return values[-1]
+        t0, t1 = times[k], times[k + 1]
+        return values[k] + (values[k + 1] - values[k]) * (time - t0) / (t1 - t0)
+
+    def _inside(self, start: float, end: float) -> tuple[float, ...]:
+        """The knots strictly between ``start`` and ``end``, in order."""
+        times = self.times
+        return times[bisect.bisect_right(times, start) : bisect.bisect_left(times, end)]
+
+    def integral(self, start: float, end: float) -> float:
+        if end < start:
+            raise ValueError(f"end must be >= start, got {start} and {end}")
+        cuts = [start, *self._inside(start, end), end]
+        total = 0.0
+        for a, b in zip(cuts, cuts[1:], strict=False):
+            mid = 0.5 * (a + b)
+            total += (b - a) * self(mid)
+        return total
+
+    def is_constant_on(self, start: float, end: float) -> bool:
+        inside = [self(t) for t in (start, *self._inside(start, end), end)]
+        return all(v == inside[0] for v in inside) and self.mean(start, end) == inside[0]
+
+
+def schedule_window(schedule: sim.PiecewiseLinear, start: float, end: float) -> sim.PiecewiseLinear:
+    """The knots of ``schedule`` that :func:`sim.follow` reads between the schedule times ``start`` and
+    ``end`` (the last knot at or before ``start``, all inside, the first at or after ``end``, and one more
+    on each side), as a schedule equal to ``schedule`` on ``[start, end]`` bit for bit.
+
+    :func:`sim.follow` reads a schedule through ``sim.variants``, whose ``PiecewiseLinear.__call__``
+    converts all ``n`` knots to an array per call and whose ``pieces``, ``integral`` and
+    ``is_constant_on`` scan all knots per call, once per piece: ``O(m n)`` per interval for ``m`` knots in
+    it. A 100,000-knot schedule took minutes per interval. The window holds only the ``m`` knots near the
+    interval and bisects them, so an interval costs ``O(m log m)`` after an ``O(log n)`` search."""
+    times = schedule.times
+    lo = max(0, bisect.bisect_left(times, start) - 2)
+    hi = min(len(times), bisect.bisect_right(times, end) + 2)
+    return _IndexedSchedule(times[lo:hi], schedule.values[lo:hi])
+
+
 def schedule_to_dict(schedule: sim.PiecewiseLinear) -> dict[str, list[float]]:
     """JSON-ready knots ``{"times": [...], "rates": [...]}``."""
     return {"times": list(schedule.times), "rates": list(schedule.values)}
@@ -140,35 +333,29 @@ def schedule_to_dict(schedule: sim.PiecewiseLinear) -> dict[str, list[float]]:
 
 def schedule_from_dict(data: Any) -> sim.PiecewiseLinear:
     """Inverse of :func:`schedule_to_dict`; also takes a :class:`sim.PiecewiseLinear` or ``(times, rates)``.
-
-    Rates must be finite and > 0 within ``[0, inf)`` time (a schedule with no shear has no viscosity to
-    control); ``ValueError`` names what is wrong.
-    """
-    if isinstance(data, sim.PiecewiseLinear):
-        schedule = data
-    elif isinstance(data, dict) and set(data) == {"times", "rates"}:
-        schedule = sim.PiecewiseLinear(tuple(data["times"]), tuple(data["rates"]))
-    elif isinstance(data, list | tuple) and len(data) == 2:
-        schedule = sim.PiecewiseLinear(tuple(data[0]), tuple(data[1]))
-    else:
-        raise ValueError(
-            "a schedule must be a sim.PiecewiseLinear, {'times': [...], 'rates': [...]} or (times, rates), "
-            f"got {data!r}"
-        )
-    if min(schedule.values) <= 0.0:
-        raise ValueError(f"schedule rates must be > 0, got {list(schedule.values)}")
-    return schedule
+    Checked by :func:`validate_schedule` (``ValueError`` names what is wrong)."""
+    return validate_schedule(data)
 
 
 def write_fixed_schedules(path: str | Path, duration: float = 12.0) -> None:
-    """Write the fixed validation and test schedules (:data:`FIXED_SPLITS`) covering ``duration``."""
+    """Write the fixed validation, test and fresh schedules (:data:`FIXED_SPLITS`) covering ``duration``,
+    with the generator's parameters and each split's count, first seed and rule."""
     out: dict[str, Any] = {
         "duration": duration,
         "rate_range": list(RATE_RANGE),
         "hold_range": list(HOLD_RANGE),
         "ramp_range": list(RAMP_RANGE),
         "generator": "dipenv.schedules.draw_schedule(np.random.default_rng(seed), duration)",
-        "seeds": "dipenv.schedules.split_seeds(split, duration): test seed + k, validation by mean rate",
+        "seeds": (
+            "dipenv.schedules.split_seeds(split, duration): test and fresh seed + k, validation by mean rate"
+        ),
+        "splits": {
+            split: {"count": count, "first_seed": seed, "pool": STRATIFIED_POOLS.get(split)}
+            for split, (count, seed) in FIXED_SPLITS.items()
+        },
+        "held_out": {
+            FRESH_SPLIT: "played only in the final evaluation; never tuned, selected or designed on"
+        },
     }
     for split in FIXED_SPLITS:
         out[split] = [
@@ -179,8 +366,17 @@ def write_fixed_schedules(path: str | Path, duration: float = 12.0) -> None:
 
 
 def fixed_schedules(split: str) -> list[sim.PiecewiseLinear]:
-    """The shipped schedules of ``split`` (``validation`` or ``test``)."""
+    """The shipped schedules of ``split`` (``validation``, ``test`` or ``fresh``)."""
     if split not in FIXED_SPLITS:
         raise ValueError(f"split must be one of {', '.join(FIXED_SPLITS)} for fixed schedules, got {split!r}")
+    return list(_shipped_schedules(split))
+
+
+@functools.cache
+def _shipped_schedules(split: str) -> tuple[sim.PiecewiseLinear, ...]:
+    """The package data of ``split``, read and checked once (the schedules are immutable)."""
     data = json.loads((resources.files("dipenv") / "data" / DATA_FILE).read_text())
-    return [schedule_from_dict({"times": s["times"], "rates": s["rates"]}) for s in data[split]]
+    return tuple(
+        validate_schedule({"times": s["times"], "rates": s["rates"]}, f"{DATA_FILE}[{split!r}][{k}]")
+        for k, s in enumerate(data[split])
+    )

@@ -8,7 +8,12 @@ run continues it bit for bit) and the per-step ``eta_r``, ``N1``, ``N2`` and ste
 ``tail_strain`` strains, from which the first observation's interval averages are taken.
 
 Splits are disjoint ranges of packing seeds: ``train`` uses seeds ``0, 1, ...``, ``validation``
-``100000, ...`` and ``test`` ``200000, ...``, so enlarging a split keeps its existing states.
+``100000, ...``, ``test`` ``200000, ...`` and ``fresh`` ``300000, ...`` (each split holds at most
+:data:`MAX_SPLIT_SIZE` = 100,000 states, so the ranges never meet), and enlarging a split keeps its
+existing states. ``fresh`` is the held-out split of the final evaluation (issue 43,
+``docs/thickening_control.md#the-fresh-split``): :meth:`StateLibrary.missing` and
+:meth:`StateLibrary.ensure` leave it out unless it is named, and :meth:`StateLibrary.load` generates only
+the state it is asked for, so no fresh state exists until an evaluation asks for it.
 
 Cache: ``$DIPENV_CACHE_DIR`` or ``$XDG_CACHE_HOME/dipenv`` (default ``~/.cache/dipenv``), then
 ``states/<key>/``, where ``key`` hashes everything that shapes the states: the simulation config (all
@@ -36,7 +41,7 @@ import multiprocessing
 import os
 import tempfile
 import warnings
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -80,11 +85,20 @@ stepper, geometry, hydrodynamics, contacts, the stress, config, state, the numba
 :func:`physics_source_digest`. So a speed-up of the field's kernels keeps the start states and every
 result keyed on them."""
 
-SPLITS = ("train", "validation", "test")
-SPLIT_SEED_OFFSET = {"train": 0, "validation": 100_000, "test": 200_000}
+SPLITS = ("train", "validation", "test", "fresh")
+"""Every split of the start states; ``fresh`` is held out for the final evaluation."""
+DEVELOPMENT_SPLITS = ("train", "validation", "test")
+"""The splits :meth:`StateLibrary.missing` and :meth:`StateLibrary.ensure` cover unless told otherwise:
+all but ``fresh``, which is generated only when named."""
+SPLIT_SEED_OFFSET = {"train": 0, "validation": 100_000, "test": 200_000, "fresh": 300_000}
 """First packing seed of each split; seeds of a split are ``offset + index``."""
 
-DEFAULT_SPLIT_SIZES = {"train": 64, "validation": 8, "test": 16}
+DEFAULT_FRESH_SIZE = 128
+"""States of the fresh split unless ``split_sizes`` says otherwise: as many as its shipped schedules
+(:data:`dipenv.schedules.FRESH_SCHEDULES`), state ``k`` paired with schedule ``k``. A size only bounds the
+indices: nothing is generated before a state is asked for."""
+
+DEFAULT_SPLIT_SIZES = {"train": 64, "validation": 8, "test": 16, "fresh": DEFAULT_FRESH_SIZE}
 
 
 def cache_root() -> Path:
@@ -168,7 +182,7 @@ class StartState:
     Attributes:
         state: the simulator state at the end of the pre-shear (field off).
         seed: packing seed.
-        split: ``train``, ``validation`` or ``test``.
+        split: ``train``, ``validation``, ``test`` or ``fresh``.
         index: index within the split.
         tail_strain: (S,) clock of each tail sample.
         tail_time_step: (S,) step after each sample (time-average weights).
@@ -197,24 +211,30 @@ MAX_SPLIT_SIZE = 100_000
 """The most start states one split may hold."""
 
 
-def check_split_sizes(split_sizes: Any) -> None:
-    """Raise ``ValueError`` unless ``split_sizes`` maps each of :data:`SPLITS` (and nothing else) to an
-    integer in [1, :data:`MAX_SPLIT_SIZE`]. The one check, made by the envs at construction and by
-    :class:`StateLibrary`."""
+def check_split_sizes(split_sizes: Any) -> dict[str, int]:
+    """Raise ``ValueError`` unless ``split_sizes`` maps each of :data:`DEVELOPMENT_SPLITS`, and optionally
+    ``fresh`` (default :data:`DEFAULT_FRESH_SIZE`), and nothing else, to an integer in
+    [1, :data:`MAX_SPLIT_SIZE`]; return the sizes of every split in :data:`SPLITS`. The one check, made by
+    the envs at construction and by :class:`StateLibrary`."""
     if not isinstance(split_sizes, dict):
-        raise ValueError(f"split_sizes must be a dict of {', '.join(SPLITS)} to sizes, got {split_sizes!r}")
+        raise ValueError(
+            f"split_sizes must be a dict of {', '.join(DEVELOPMENT_SPLITS)} to sizes (fresh optional), got "
+            f"{split_sizes!r}"
+        )
     unknown = [key for key in split_sizes if key not in SPLITS]
     if unknown:
         raise ValueError(
             f"split_sizes has unknown split {unknown[0]!r} (the splits are {', '.join(SPLITS)}), got "
             f"{split_sizes!r}"
         )
+    resolved = {"fresh": DEFAULT_FRESH_SIZE, **split_sizes}
     for split in SPLITS:
-        size = split_sizes.get(split, 0)
+        size = resolved.get(split, 0)
         if isinstance(size, bool) or not isinstance(size, int) or not 1 <= size <= MAX_SPLIT_SIZE:
             raise ValueError(
                 f"split_sizes[{split!r}] must be an integer in [1, {MAX_SPLIT_SIZE}], got {size!r}"
             )
+    return {split: int(resolved[split]) for split in SPLITS}
 
 
 @dataclass(frozen=True)
@@ -226,7 +246,8 @@ class StateLibrary:
             off).
         preshear_strain: strain sheared without field from the random packing (> tail_strain).
         tail_strain: strain at the end of the pre-shear whose per-step rheology is kept (> 0).
-        split_sizes: number of states per split.
+        split_sizes: number of states per split (``fresh`` optional: :data:`DEFAULT_FRESH_SIZE`); stored
+            with every split filled in.
         root: cache root (default :func:`cache_root`).
     """
 
@@ -246,7 +267,7 @@ class StateLibrary:
                 "need 0 < tail_strain < preshear_strain (finite), got "
                 f"{self.tail_strain}, {self.preshear_strain}"
             )
-        check_split_sizes(self.split_sizes)
+        object.__setattr__(self, "split_sizes", check_split_sizes(self.split_sizes))
 
     # -- identity ----------------------------------------------------------------------------------------
     def parameters(self) -> dict[str, Any]:
@@ -287,20 +308,37 @@ class StateLibrary:
             raise ValueError(f"index must be an integer in [0, {size}) for split {split!r}, got {index!r}")
 
     # -- generation ----------------------------------------------------------------------------------------
-    def missing(self, splits: Iterable[str] = SPLITS) -> list[tuple[str, int]]:
-        """``(split, index)`` of the states not on disk yet."""
+    def missing(self, splits: Iterable[str] = DEVELOPMENT_SPLITS) -> list[tuple[str, int]]:
+        """``(split, index)`` of the states of ``splits`` (default: all but ``fresh``) not on disk yet."""
+        splits = list(splits)
+        for split in splits:
+            if split not in SPLITS:
+                raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
         return [(s, i) for s in splits for i in range(self.split_sizes[s]) if not self.path(s, i).exists()]
 
-    def ensure(self, splits: Iterable[str] = SPLITS, progress: bool = True, workers: int = 1) -> None:
-        """Generate the missing states of ``splits`` (progress bar on stderr unless ``progress=False``).
+    def ensure(
+        self, splits: Iterable[str] = DEVELOPMENT_SPLITS, progress: bool = True, workers: int = 1
+    ) -> None:
+        """Generate the missing states of ``splits`` (default: all but ``fresh``, which is generated only
+        when named; progress bar on stderr unless ``progress=False``).
 
         ``workers > 1`` pre-shears that many states at once in separate processes (each state is
         independent, so the files are the same as with one worker). A state that another process wrote
         meanwhile is not generated again."""
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
             raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        splits = list(splits)
+        for split in splits:
+            if split not in SPLITS:
+                raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
+        self._generate_missing(lambda: self.missing(splits), progress, workers)
+
+    def _generate_missing(
+        self, missing: Callable[[], list[tuple[str, int]]], progress: bool, workers: int
+    ) -> None:
+        """Generate the states ``missing()`` lists once stale states are discarded."""
         self._discard_if_stale()
-        todo = self.missing(list(splits))
+        todo = missing()
         if not todo:
             return
         self.directory.mkdir(parents=True, exist_ok=True)
@@ -388,10 +426,11 @@ class StateLibrary:
 
     # -- reading -------------------------------------------------------------------------------------------
     def load(self, split: str, index: int, progress: bool = True) -> StartState:
-        """State ``index`` of ``split`` (its split is generated first if this state is missing)."""
+        """State ``index`` of ``split``, generated first if it is missing (that state only: the rest of its
+        split is generated by :meth:`ensure`)."""
         path = self.path(split, index)
         if not path.exists() or self.stale_reason() is not None:
-            self.ensure([split], progress=progress)
+            self._generate_missing(lambda: [] if path.exists() else [(split, index)], progress, 1)
         with np.load(path) as data:
             return StartState(
                 state=sim.SimulationState.from_arrays(data),

@@ -9,7 +9,8 @@ time is strain, stress is in ``eta gammadot``; ``Mn = eta gammadot / (eps E0^2)`
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+import os
+from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -29,6 +30,7 @@ from dipenv.actions import (
     field_energy,
     validate_action,
 )
+from dipenv.checks import is_real_number, real_number
 from dipenv.observations import (
     MICROSTRUCTURE_DOC_ROWS,
     ObservationFeature,
@@ -62,6 +64,38 @@ DEFAULT_PRESHEAR_STRAIN = 5.0
 _Y = np.array([0.0, 1.0, 0.0])
 
 
+_ENV_SET_FIELDS = frozenset(
+    {"n_particles", "volume_fraction", "mason_number", "field_direction", "shear_rate"}
+)
+"""Simulation fields an env sets itself (the box and phi from its arguments and start states, the field
+from the actions, the rate from the start state or schedule): not accepted as ``simulation_overrides``."""
+
+
+def _check_overrides(overrides: object) -> dict[str, Any]:
+    """``simulation_overrides`` as a dict of :class:`sim.SimulationConfig` fields with valid values, or
+    ``ValueError`` naming what is wrong (an unknown field used to fail only at the first reset)."""
+    if overrides is None:
+        return {}
+    if not isinstance(overrides, dict):
+        raise ValueError(
+            f"simulation_overrides must be a dict of sim.SimulationConfig fields, got {overrides!r}"
+        )
+    names = {f.name for f in fields(sim.SimulationConfig)}
+    for key in overrides:
+        if key not in names:
+            raise ValueError(f"simulation_overrides: {key!r} is not a sim.SimulationConfig field")
+        if key in _ENV_SET_FIELDS:
+            raise ValueError(
+                f"simulation_overrides: {key!r} is set by the environment itself (its own arguments, start "
+                "states, actions or schedule)"
+            )
+    try:
+        sim.SimulationConfig(n_particles=64, volume_fraction=0.45, **overrides)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"simulation_overrides {overrides!r} are refused: {error}") from None
+    return dict(overrides)
+
+
 class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
     """Shared implementation of :class:`FieldMagnitudeEnv` and :class:`FieldVectorEnv` (see their docstrings).
 
@@ -79,10 +113,13 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         energy_weight: w_E of the reward.
         failure_penalty: reward per failed or lost step on a simulator failure.
         history_length: previous observation frames appended to the current one (0 = none).
-        split: start-state split for resets without ``options["split"]``.
+        split: start-state split for resets without ``options["split"]`` (train, validation, test or
+            fresh: the held-out split of the final evaluation, docs/thickening_control.md#the-fresh-split).
         start_state: ``"random"`` (drawn with ``self.np_random``) or ``"cycle"`` (0, 1, 2, ... in turn:
             every state of the split once per cycle, for evaluation).
-        split_sizes: states per split of the library (default 64 / 8 / 16).
+        split_sizes: states per split of the library (default train 64, validation 8, test 16; fresh
+            optional, default 128, :data:`dipenv.state_library.DEFAULT_FRESH_SIZE`). A state is generated
+            when a reset first asks for it (or by ``library().ensure``), so a size costs nothing by itself.
         preshear_strain: strain of pure shear that prepares each start state.
         solver_tolerance, ewald_accuracy, near_field, near_field_cutoff, time_step, max_displacement:
             passed to :class:`sim.SimulationConfig` (``ewald_accuracy`` defaults to
@@ -97,6 +134,10 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}  # noqa: RUF012
     vector_field: ClassVar[bool] = False
+    target_name: ClassVar[str] = "target_viscosity"
+    """The argument that sets the reward's target (the thickening-control envs: ``eta_cap``)."""
+    reset_options: ClassVar[tuple[str, ...]] = ("split", "index", "volume_fraction", "realisation")
+    """The keys ``reset(options=...)`` accepts (a subclass adds its own)."""
 
     def __init__(
         self,
@@ -129,12 +170,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         render_mode: str | None = None,
     ) -> None:
         super().__init__()
-        if not (
-            isinstance(control_interval, int | float)
-            and math.isfinite(control_interval)
-            and control_interval > 0
-        ):
-            raise ValueError(f"control_interval must be a finite strain > 0, got {control_interval!r}")
+        control_interval = real_number("control_interval", control_interval, 0.0, low_open=True)
         if isinstance(episode_steps, bool) or not isinstance(episode_steps, int) or episode_steps < 1:
             raise ValueError(f"episode_steps must be an integer >= 1, got {episode_steps!r}")
         if (
@@ -149,20 +185,39 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if split_sizes is not None:
-            check_split_sizes(split_sizes)
-        self.control_interval = float(control_interval)
+        resolved_sizes = check_split_sizes(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
+        # Numbers are checked here, by name: a string or a bool used to reach float() or a comparison
+        # (Python's message), and a zero pre-shear or a negative target were accepted.
+        mason_min = real_number("mason_min", mason_min, 0.0, low_open=True)
+        mason_max = real_number("mason_max", mason_max, 0.0, low_open=True)
+        off_band = real_number("off_band", off_band, 0.0)
+        actuator_time_constant = real_number("actuator_time_constant", actuator_time_constant, 0.0)
+        energy_weight = real_number("energy_weight", energy_weight, 0.0)
+        failure_penalty = real_number("failure_penalty", failure_penalty, 0.0)
+        preshear_strain = real_number("preshear_strain", preshear_strain, 0.0, low_open=True)
+        if target_viscosity is not None:
+            target_viscosity = real_number(self.target_name, target_viscosity, 0.0, low_open=True)
+        if not isinstance(progress, bool):
+            raise ValueError(f"progress must be True or False, got {progress!r}")
+        if library_root is not None and (
+            not isinstance(library_root, str | os.PathLike) or library_root == ""
+        ):
+            raise ValueError(
+                f"library_root must be a folder path (or None for the default cache), got {library_root!r}"
+            )
+        overrides = _check_overrides(simulation_overrides)
+        self.control_interval = control_interval
         self.episode_steps = episode_steps
         self.mapping = FieldStrengthMapping(mason_min, mason_max, off_band)
-        self.actuator = ActuatorFilter(float(actuator_time_constant), actuator_substeps)
-        self.energy_weight = float(energy_weight)
-        self.failure_penalty = float(failure_penalty)
+        self.actuator = ActuatorFilter(actuator_time_constant, actuator_substeps)
+        self.energy_weight = energy_weight
+        self.failure_penalty = failure_penalty
         self.explicit_target = target_viscosity
         self.history_length = history_length
         self.split = split
         self.start_state = start_state
-        self.split_sizes = dict(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
-        self.preshear_strain = float(preshear_strain)
+        self.split_sizes = resolved_sizes
+        self.preshear_strain = preshear_strain
         self.progress = progress
         self.render_mode = render_mode
         self.library_root = None if library_root is None else Path(library_root)
@@ -177,9 +232,14 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             time_step=time_step,
             max_displacement=max_displacement,
         )
-        self.simulation_overrides = dict(simulation_overrides or {})
-        # Checks now that the field can be switched on at all (exact near field needs a wide enough box).
+        self.simulation_overrides = overrides
+        # Checks now that the field can be switched on at all (exact near field needs a wide enough box),
+        # in the library's box and in the episodes' (the overrides may change the cut-off).
         self.base_config.check_near_field_box()
+        try:
+            replace(self.base_config, **overrides).check_near_field_box()
+        except ValueError as error:
+            raise ValueError(f"simulation_overrides {overrides!r} are refused: {error}") from None
         self.reward_function = self._reward_for(volume_fraction)
 
         n_actions = 3 if self.vector_field else 1
@@ -280,26 +340,63 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> tuple[np.ndarray, dict[str, Any]]:
         """Start an episode from a pre-sheared state (field off).
 
-        ``options``: ``split`` (train/validation/test), ``index`` (state within the split; default drawn
+        ``options`` (:attr:`reset_options`; checked first, so that a refused reset changes nothing):
+        ``split`` (train/validation/test/fresh), ``index`` (state within the split; default drawn
         with ``self.np_random``, or the next in turn with ``start_state="cycle"``), ``volume_fraction``,
         ``realisation`` (integer >= 0, default 0: the state moved by 1e-9 a with a displacement fixed by
         ``(split, index, realisation)``, for independent repeats of one episode; 0 is the stored state
         itself; :mod:`dipenv.realisations`).
         """
-        super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"split", "index", "volume_fraction", "realisation"}
+        return self._reset_checked(seed, self._check_reset_options(options))
+
+    def _check_reset_options(self, options: object) -> dict[str, Any]:
+        """``options`` checked before anything changes (a refused reset leaves the env as it was): a dict
+        of :attr:`reset_options` with valid values, or ``ValueError`` naming the option and what is wrong.
+        Returns a copy."""
+        if options is None:
+            return {}
+        if not isinstance(options, dict):
+            raise ValueError(
+                f"reset options must be a dict (or None) of {', '.join(self.reset_options)}, got "
+                f"{options!r}"
+            )
+        unknown = [key for key in options if key not in self.reset_options]
         if unknown:
             raise ValueError(
-                f"unknown reset options {sorted(unknown)}; allowed: split, index, volume_fraction, "
-                "realisation"
+                f"unknown reset options {sorted(map(str, unknown))}; {type(self).__name__} accepts: "
+                f"{', '.join(self.reset_options)}"
             )
+        options = dict(options)
         realisation = options.get("realisation", 0)
         if isinstance(realisation, bool) or not isinstance(realisation, int | np.integer) or realisation < 0:
             raise ValueError(f"options['realisation'] must be an integer >= 0, got {realisation!r}")
         split = options.get("split", self.split)
-        if split not in SPLITS:
+        if not isinstance(split, str) or split not in SPLITS:
             raise ValueError(f"options['split'] must be one of {', '.join(SPLITS)}, got {split!r}")
+        if "index" in options:
+            index, size = options["index"], self.split_sizes[split]
+            if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < size:
+                raise ValueError(
+                    f"options['index'] must be an integer in [0, {size}) for split {split!r}, got {index!r}"
+                )
+        if "volume_fraction" in options:
+            phi = options["volume_fraction"]
+            if not is_real_number(phi):
+                raise ValueError(f"options['volume_fraction'] must be a real number, got {phi!r}")
+            try:
+                config = replace(self.base_config, volume_fraction=float(phi))
+                config.check_near_field_box()
+                self._reward_for(float(phi))  # a tabulated default target or cap, or an explicit one
+            except ValueError as error:
+                raise ValueError(f"options['volume_fraction'] = {phi!r} is refused: {error}") from None
+        return options
+
+    def _reset_checked(self, seed: int | None, options: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+        """:meth:`reset` once :meth:`_check_reset_options` has accepted ``options``."""
+        super().reset(seed=seed)
+        self._needs_reset = True  # until this reset has finished
+        realisation = options.get("realisation", 0)
+        split = options.get("split", self.split)
         phi = float(options.get("volume_fraction", self.base_config.volume_fraction))
         size = self.split_sizes[split]
         if "index" in options:
@@ -309,8 +406,6 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             self._cycle += 1
         else:
             index = int(self.np_random.integers(size))
-        if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < size:
-            raise ValueError(f"options['index'] must be an integer in [0, {size}), got {index!r}")
         self.reward_function = self._reward_for(phi)
         start = self._start_state(phi, split, int(index))
         simulation = self._episode_simulation(phi, start)

@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 import sim
+from dipenv.checks import is_real_number, real_number, real_pair
 from dipenv.envs.field_control import FieldControlEnv
 from dipenv.observations import MICROSTRUCTURE_DOC_ROWS, ObservationFeature, observation_features, signed_log
 from dipenv.rewards import ThickeningPenaltyReward, ViscosityTargetReward, default_viscosity_cap
@@ -27,9 +28,10 @@ from dipenv.schedules import (
     STRATIFIED_POOLS,
     draw_schedule,
     fixed_schedules,
-    schedule_from_dict,
     schedule_to_dict,
+    schedule_window,
     split_seeds,
+    validate_schedule,
 )
 
 DEFAULT_MAX_PIECE = 0.05
@@ -95,10 +97,15 @@ class ThickeningControlEnv(FieldControlEnv):
 
     A pre-sheared state of the start-state library, as ``FieldMagnitude-v0``, field off, the rate set
     to the schedule's first value. Training episodes draw their schedule with ``self.np_random``; the
-    validation and test splits pair start state ``k`` with fixed schedule ``k``
-    (:func:`dipenv.schedules.fixed_schedules`), so every controller meets the same episodes.
-    ``reset(options={"schedule": {"times": [...], "rates": [...]}})`` runs a schedule of your own (rates
-    > 0, times from the episode start).
+    validation, test and fresh splits pair start state ``k`` with fixed schedule ``k``
+    (:func:`dipenv.schedules.fixed_schedules`), so every controller meets the same episodes. The fresh
+    split is held out: played only in the final evaluation, never tuned, selected or designed on
+    (``docs/thickening_control.md#the-fresh-split``).
+    ``reset(options={"schedule": {"times": [...], "rates": [...]}})`` runs a schedule of your own,
+    checked by :func:`dipenv.schedules.validate_schedule` before anything changes: times from 0 (the
+    episode start), increasing (two equal times make a jump); rates in
+    ``[sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE]``; at most :data:`dipenv.schedules.MAX_SCHEDULE_KNOTS`
+    knots, which cost no more per interval than a few.
 
     ## Episode End
 
@@ -125,10 +132,16 @@ class ThickeningControlEnv(FieldControlEnv):
       THICKENING_V2_KWARGS`): fields below 0.1 cost more energy per interval than the largest excess
       eta_r they could remove, and were the slowest to simulate. Physics, schedules and start states are
       v1's.
+    * 2026-12-07, every version: the ``fresh`` split (128 schedules and start states, held out for the
+      final evaluation; issue 43); schedules and reset options are checked before anything changes, and
+      a schedule rate must lie in the simulator's range (rate 0 and 1e-9 are refused; issue 45). The
+      episodes of every accepted input are unchanged.
     """
 
     __doc__ = (__doc__ or "").replace("{microstructure_rows}", MICROSTRUCTURE_DOC_ROWS)
     rate_observed: ClassVar[bool] = True
+    reset_options: ClassVar[tuple[str, ...]] = (*FieldControlEnv.reset_options, "schedule")
+    target_name: ClassVar[str] = "eta_cap"
 
     def __init__(
         self,
@@ -140,23 +153,32 @@ class ThickeningControlEnv(FieldControlEnv):
         max_piece: float = DEFAULT_MAX_PIECE,
         **kwargs: Any,
     ) -> None:
-        if kwargs.get("actuator_time_constant", 0.0) != 0.0:
+        lag = kwargs.get("actuator_time_constant", 0.0)
+        if not (is_real_number(lag) and lag == 0.0):
             raise ValueError(
                 "actuator_time_constant must be 0 in the thickening-control environments (no actuator lag), "
-                f"got {kwargs['actuator_time_constant']!r}"
+                f"got {lag!r}"
             )
         if "target_viscosity" in kwargs:
             raise ValueError("the thickening-control environments take eta_cap, not target_viscosity")
+        if eta_cap is not None:
+            eta_cap = real_number("eta_cap", eta_cap, 0.0, low_open=True)
         self.explicit_cap = eta_cap
-        self.rate_range = tuple(float(x) for x in rate_range)
-        self.hold_range = tuple(float(x) for x in hold_range)
-        self.ramp_range = tuple(float(x) for x in ramp_range)
-        if not (math.isfinite(max_piece) and max_piece > 0.0):
-            raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
-        self.max_piece = float(max_piece)
+        self.rate_range = real_pair("rate_range", rate_range)
+        low, high = sim.MIN_SHEAR_RATE, sim.MAX_SHEAR_RATE
+        if not low <= self.rate_range[0] <= self.rate_range[1] <= high:
+            raise ValueError(
+                f"rate_range must be [low, high] with sim.MIN_SHEAR_RATE = {low:g} <= low <= high <= "
+                f"sim.MAX_SHEAR_RATE = {high:g} (the simulator's rates, gammadot_ref), got {rate_range!r}"
+            )
+        self.hold_range = real_pair("hold_range", hold_range)
+        self.ramp_range = real_pair("ramp_range", ramp_range)
+        self.max_piece = real_number("max_piece", max_piece, 0.0, low_open=True)
         super().__init__(*args, **kwargs)
         # draw once now, so that bad ranges are refused at make, not at the first reset
-        draw_schedule(np.random.default_rng(0), self.episode_duration, rate_range, hold_range, ramp_range)
+        draw_schedule(
+            np.random.default_rng(0), self.episode_duration, self.rate_range, self.hold_range, self.ramp_range
+        )
         self._schedule = sim.constant(1.0)
 
     @property
@@ -190,8 +212,18 @@ class ThickeningControlEnv(FieldControlEnv):
         return settings
 
     def fixed_schedule(self, split: str, index: int) -> sim.PiecewiseLinear:
-        """Schedule ``index`` of a validation or test split: the shipped one when this env has the default
-        schedule parameters and episode duration, else drawn from the same seed with this env's."""
+        """Schedule ``index`` of a validation, test or fresh split: the shipped one when this env has the
+        default schedule parameters and episode duration, else drawn from the same seed with this env's.
+        ``ValueError`` for the train split (its episodes draw their schedules) or an index outside the
+        split's states (``split_sizes``)."""
+        if split not in FIXED_SPLITS:
+            raise ValueError(
+                f"split must be one of {', '.join(FIXED_SPLITS)} for fixed schedules (train episodes draw "
+                f"theirs with the env's np_random), got {split!r}"
+            )
+        size = self.split_sizes[split]
+        if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < size:
+            raise ValueError(f"index must be an integer in [0, {size}) for split {split!r}, got {index!r}")
         count, seed = FIXED_SPLITS[split]
         defaults = (self.rate_range, self.hold_range, self.ramp_range, self.episode_duration) == (
             RATE_RANGE, HOLD_RANGE, RAMP_RANGE, 12.0
@@ -210,11 +242,20 @@ class ThickeningControlEnv(FieldControlEnv):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[np.ndarray, dict[str, Any]]:
-        """As :meth:`FieldControlEnv.reset`, with the option ``schedule`` (see the class docstring)."""
-        options = dict(options or {})
-        own = options.pop("schedule", None)
-        schedule = None if own is None else schedule_from_dict(own)
-        _, info = super().reset(seed=seed, options=options)
+        """As :meth:`FieldControlEnv.reset`, with the option ``schedule`` (see the class docstring), checked
+        by :func:`dipenv.schedules.validate_schedule` before anything changes."""
+        return self._reset_checked(seed, self._check_reset_options(options))
+
+    def _check_reset_options(self, options: object) -> dict[str, Any]:
+        checked = super()._check_reset_options(options)
+        if "schedule" in checked:
+            checked["schedule"] = validate_schedule(checked["schedule"], "options['schedule']")
+        return checked
+
+    def _reset_checked(self, seed: int | None, options: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+        options = dict(options)
+        schedule = options.pop("schedule", None)
+        _, info = super()._reset_checked(seed, options)
         if schedule is None:
             if info["split"] == "train":
                 schedule = draw_schedule(
@@ -254,7 +295,11 @@ class ThickeningControlEnv(FieldControlEnv):
 
     # -- internals ------------------------------------------------------------------------------------------
     def _advance(self, simulation: sim.Simulation, end_time: float) -> sim.StepRecords:
-        return sim.follow(simulation, end_time, self._schedule, self.max_piece, origin=self._episode_start)
+        # The window is the schedule bit for bit on the way to end_time (sim.follow reads nothing else),
+        # and its length does not grow with the schedule's (dipenv.schedules.schedule_window).
+        origin = self._episode_start
+        window = schedule_window(self._schedule, simulation.state.time - origin, end_time - origin)
+        return sim.follow(simulation, end_time, window, self.max_piece, origin=origin)
 
     def _frame(self, eta: float, n1: float, n2: float, shear_stress: float) -> np.ndarray:
         frame = super()._frame(eta, n1, n2, shear_stress)
