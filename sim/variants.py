@@ -19,11 +19,10 @@ References:
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-
-import numpy as np
 
 from sim.simulation import Simulation, StepRecords
 
@@ -63,7 +62,7 @@ class PiecewiseLinear:
         times, values = self.times, self.values
         if time < times[0]:
             return values[0]
-        k = int(np.searchsorted(times, time, side="right")) - 1
+        k = bisect.bisect_right(times, time) - 1  # O(log n) on the tuple (np.searchsorted copies it)
         if k >= len(times) - 1:
             return values[-1]
         t0, t1 = times[k], times[k + 1]
@@ -73,7 +72,7 @@ class PiecewiseLinear:
         """``int_start^end v dt`` exactly (trapezoids over the linear pieces), ``end >= start``."""
         if end < start:
             raise ValueError(f"end must be >= start, got {start} and {end}")
-        cuts = [start, *(t for t in self.times if start < t < end), end]
+        cuts = [start, *self.knots_inside(start, end), end]
         total = 0.0
         for a, b in zip(cuts, cuts[1:], strict=False):
             mid = 0.5 * (a + b)
@@ -86,8 +85,12 @@ class PiecewiseLinear:
 
     def is_constant_on(self, start: float, end: float) -> bool:
         """True when ``v`` takes one value on ``(start, end)``."""
-        inside = [self(t) for t in (start, *(t for t in self.times if start < t < end), end)]
+        inside = [self(t) for t in (start, *self.knots_inside(start, end), end)]
         return all(v == inside[0] for v in inside) and self.mean(start, end) == inside[0]
+
+    def knots_inside(self, start: float, end: float) -> tuple[float, ...]:
+        """The knot times ``t`` with ``start < t < end``, in order (found by bisection: O(log n))."""
+        return self.times[bisect.bisect_right(self.times, start) : bisect.bisect_left(self.times, end)]
 
     @property
     def duration(self) -> float:
@@ -112,7 +115,7 @@ def pieces(variant: PiecewiseLinear, start: float, end: float, max_piece: float)
     ``max_piece`` long parts wherever the variant is not constant."""
     if not (math.isfinite(max_piece) and max_piece > 0.0):
         raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
-    cuts = [start, *(t for t in variant.times if start < t < end), end]
+    cuts = [start, *variant.knots_inside(start, end), end]
     out: list[tuple[float, float]] = []
     for a, b in zip(cuts, cuts[1:], strict=False):
         if b <= a:

@@ -70,3 +70,27 @@ def test_bad_variants_are_refused(times, values, message) -> None:
         ramp(0, 1, 0, 0)
     with pytest.raises(ValueError, match="segment kind"):
         schedule_from_segments([("jump", 1.0, 1.0)], 1.0)
+
+
+def test_knots_inside_is_the_plain_scan_and_lookups_match_searchsorted() -> None:
+    """The bisection look-ups (O(log n), so a 100,000-knot schedule is followed at once) give the same
+    knots and values as the plain scan and ``np.searchsorted`` they replaced, jumps included."""
+    import numpy as np
+
+    from sim import PiecewiseLinear
+
+    rng = np.random.default_rng(4)
+    times = np.sort(np.concatenate([rng.uniform(0.0, 10.0, 200), [3.0, 3.0]]))
+    variant = PiecewiseLinear(tuple(times), tuple(rng.uniform(0.2, 5.0, times.size)))
+    for start, end in ((0.0, 10.0), (2.5, 3.0), (3.0, 3.5), (-1.0, 0.5), (9.9, 12.0), (4.0, 4.0)):
+        assert variant.knots_inside(start, end) == tuple(t for t in variant.times if start < t < end)
+    for time in np.concatenate([rng.uniform(-1.0, 11.0, 300), times]):
+        k = int(np.searchsorted(times, time, side="right")) - 1
+        if time < times[0]:
+            expected = variant.values[0]
+        elif k >= times.size - 1:
+            expected = variant.values[-1]
+        else:
+            t0, t1 = times[k], times[k + 1]
+            expected = variant.values[k] + (variant.values[k + 1] - variant.values[k]) * (time - t0) / (t1 - t0)
+        assert variant(float(time)) == expected
