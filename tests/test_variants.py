@@ -92,5 +92,6 @@ def test_knots_inside_is_the_plain_scan_and_lookups_match_searchsorted() -> None
             expected = variant.values[-1]
         else:
             t0, t1 = times[k], times[k + 1]
-            expected = variant.values[k] + (variant.values[k + 1] - variant.values[k]) * (time - t0) / (t1 - t0)
+            v0, v1 = variant.values[k], variant.values[k + 1]
+            expected = v0 + (v1 - v0) * (time - t0) / (t1 - t0)
         assert variant(float(time)) == expected
