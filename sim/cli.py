@@ -11,13 +11,18 @@
 ``--phi``, ``--n-particles``, ``--mason`` and ``--mechanism`` take comma lists (the sweep is their
 cartesian product with ``--seeds``), the other options one value for every point.
 
+Every command's ``--out`` follows the run-folder protocol (:mod:`sim.runs.folder`): ``manifest.json``
+first; a rerun of the same command and parameters continues; ``--resume`` insists on a run to continue;
+``--overwrite`` deletes the previous run; another command's folder, other parameters or a non-empty
+folder without a manifest are refused. Flags must be spelled out (no parser takes a prefix of a flag).
+
 Exit status 0 on success, 2 on bad input (``python -m sim <command>: error: ...`` after the command's
-usage; the message names the flag and its valid range; for ``run`` also an ``--out`` that already holds
-a run, unless ``--resume`` continues it or ``--overwrite`` replaces it), 1 when a simulation fails (for
-``sweep``: when any point failed; the others still run, and ``error.json`` in the failed point's folder
-holds the traceback), 130 when a run or sweep is interrupted (Ctrl-C; the run's last checkpoint is
-kept: rerun with ``--resume``, or the same sweep command, to continue). With ``--json`` the last line on
-stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
+usage; the message names the flag and its valid range) and on an ``--out`` the command may not use or
+continue (naming the folder, or the damaged file), 1 when a simulation fails (for ``sweep``: when any
+point failed; the others still run, and ``error.json`` in the failed point's folder holds the
+traceback), 130 when a run, sweep or flow curve is interrupted (Ctrl-C; the last checkpoint is kept:
+rerun the same command to continue). With ``--json`` the last line on stdout is one JSON object
+(``run``: ``result.json``; ``sweep``: ``sweep.json``).
 """
 
 from __future__ import annotations
