@@ -11,13 +11,18 @@
 ``--phi``, ``--n-particles``, ``--mason`` and ``--mechanism`` take comma lists (the sweep is their
 cartesian product with ``--seeds``), the other options one value for every point.
 
+Every command's ``--out`` follows the run-folder protocol (:mod:`sim.runs.folder`): ``manifest.json``
+first; a rerun of the same command and parameters continues; ``--resume`` insists on a run to continue;
+``--overwrite`` deletes the previous run; another command's folder, other parameters or a non-empty
+folder without a manifest are refused. Flags must be spelled out (no parser takes a prefix of a flag).
+
 Exit status 0 on success, 2 on bad input (``python -m sim <command>: error: ...`` after the command's
-usage; the message names the flag and its valid range; for ``run`` also an ``--out`` that already holds
-a run, unless ``--resume`` continues it or ``--overwrite`` replaces it), 1 when a simulation fails (for
-``sweep``: when any point failed; the others still run, and ``error.json`` in the failed point's folder
-holds the traceback), 130 when a run or sweep is interrupted (Ctrl-C; the run's last checkpoint is
-kept: rerun with ``--resume``, or the same sweep command, to continue). With ``--json`` the last line on
-stdout is one JSON object (``run``: ``result.json``; ``sweep``: ``sweep.json``).
+usage; the message names the flag and its valid range) and on an ``--out`` the command may not use or
+continue (naming the folder, or the damaged file), 1 when a simulation fails (for ``sweep``: when any
+point failed; the others still run, and ``error.json`` in the failed point's folder holds the
+traceback), 130 when a run, sweep or flow curve is interrupted (Ctrl-C; the last checkpoint is kept:
+rerun the same command to continue). With ``--json`` the last line on stdout is one JSON object
+(``run``: ``result.json``; ``sweep``: ``sweep.json``).
 """
 
 from __future__ import annotations
@@ -39,8 +44,10 @@ from sim.config import (
     DEFAULT_MAX_DISPLACEMENT,
     DEFAULT_TIME_STEP,
     MAX_PARTICLES,
+    MAX_SHEAR_RATE,
     MAX_STEPS,
     MECHANISMS,
+    MIN_SHEAR_RATE,
     NEAR_FIELD_MODELS,
     SimulationConfig,
 )
@@ -95,7 +102,14 @@ def with_flags(message: str) -> str:
 
 
 class _Parser(argparse.ArgumentParser):
-    """Argument parser whose errors print its usage and ``<prog>: error: <message>``, exit status 2."""
+    """Argument parser whose errors print its usage and ``<prog>: error: <message>``, exit status 2.
+
+    A flag must be spelled out: argparse's prefix matching (``allow_abbrev``) is off, so that
+    ``flow-curve --strain 5`` is refused instead of being taken as ``--strain-per-rate 5``."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> NoReturn:
         self.print_usage(sys.stderr)
@@ -114,14 +128,16 @@ def _mason_number(text: str) -> float:
 
 
 def _shear_rate(text: str) -> float:
-    """``--shear-rate``: a finite number >= 0 in units of the reference rate (0: quiescent, field only)."""
+    """``--shear-rate``: 0 (quiescent, field only) or a number in [MIN_SHEAR_RATE, MAX_SHEAR_RATE], in
+    units of the reference rate."""
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not (math.isfinite(value) and value >= 0.0):
+    if not (value == 0.0 or MIN_SHEAR_RATE <= value <= MAX_SHEAR_RATE):
         raise argparse.ArgumentTypeError(
-            f"must be a finite number >= 0 (units of the reference rate; 0 = quiescent), got {text!r}"
+            f"must be 0 (quiescent) or in [{MIN_SHEAR_RATE:g}, {MAX_SHEAR_RATE:g}] (units of the reference "
+            f"rate gammadot_ref), got {text!r}"
         )
     return value
 
@@ -302,8 +318,9 @@ SIMULATION_OPTIONS = (
     ),
     _Option(
         "--shear-rate",
-        "shear rate in units of the reference rate gammadot_ref, finite and >= 0 (0: quiescent, field "
-        "only, needs a finite --mason); --mason is the Mason number at the reference rate (default 1)",
+        f"shear rate in units of the reference rate gammadot_ref: 0 (quiescent, field only, needs a finite "
+        f"--mason) or in [{MIN_SHEAR_RATE:g}, {MAX_SHEAR_RATE:g}]; --mason is the Mason number at the "
+        "reference rate (default 1)",
         _shear_rate,
         1.0,
     ),
@@ -358,7 +375,8 @@ SIMULATION_OPTIONS = (
     _Option(
         "--out",
         "output directory (created; must not be a file): the run's files, or one folder per sweep point "
-        "and sweep.json",
+        "and sweep.json; manifest.json names its owner (a rerun of the same command and parameters "
+        "continues; anything else there is refused)",
         _directory,
     ),
     _Option(
@@ -405,17 +423,23 @@ def _add_run_arguments(run: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim run``."""
     _add_simulation_options(run, lists=False)
     run.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
-    existing = run.add_mutually_exclusive_group()
-    existing.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue from OUT/checkpoint.npz; only --strain may differ from that run (to extend it)",
+    _add_folder_arguments(
+        run,
+        "continue the run in OUT from its checkpoint (refused if OUT holds no run); only --strain may "
+        "differ from that run (to extend it). A rerun of the same parameters continues without it",
     )
+
+
+def _add_folder_arguments(parser: argparse.ArgumentParser, resume_help: str) -> None:
+    """``--resume`` and ``--overwrite`` (mutually exclusive), the same in every command
+    (:mod:`sim.runs.folder`)."""
+    existing = parser.add_mutually_exclusive_group()
+    existing.add_argument("--resume", action="store_true", help=resume_help)
     existing.add_argument(
         "--overwrite",
         action="store_true",
-        help="delete the files of the run already in OUT and start afresh (without --resume or "
-        "--overwrite, an OUT that holds a run, even one of the same parameters, is refused with exit 2)",
+        help="delete the previous run in OUT (everything in it, whichever command made it) and start "
+        "afresh; a folder that no command owns (no manifest.json) is never deleted",
     )
 
 
@@ -450,6 +474,11 @@ def _add_sweep_arguments(sweep: argparse.ArgumentParser) -> None:
         help="run the points on the Dask cluster whose scheduler is at ADDRESS (tcp://HOST:8786) instead of "
         "local processes; needs dask[distributed] and the same sim sources on every worker",
     )
+    _add_folder_arguments(
+        sweep,
+        "insist on continuing the sweep in OUT (refused if OUT holds none); a rerun of the same sweep "
+        "continues without it (it may add points and lengthen --strain)",
+    )
     source = sweep.add_mutually_exclusive_group()
     source.add_argument(
         "--spec",
@@ -483,10 +512,12 @@ def build_parser() -> argparse.ArgumentParser:
             "Run every combination of the comma lists given to "
             + ", ".join(LISTABLE)
             + " and --seeds into OUT/<point> (python -m sim run's options; the others hold for every "
-            "point). A rerun skips finished points, resumes interrupted ones from their checkpoint and "
-            "reruns points whose parameters or sim sources changed. OUT/sweep.json lists the points and "
-            "their status. Exit status: 0 all points finished, 1 some point failed (error.json in its "
-            "folder; the others still ran), 2 bad input, 130 interrupted (rerun to resume)."
+            "point). A rerun skips finished points, resumes interrupted ones from their checkpoint, adds "
+            "new points, extends the points to a longer --strain and reruns points whose sim sources "
+            "changed; other shared options (or a shorter --strain) are refused unless --overwrite deletes "
+            "the previous sweep. OUT/sweep.json lists the points and their status. Exit status: 0 all "
+            "points finished, 1 some point failed (error.json in its folder; the others still ran), 2 bad "
+            "input (or an OUT that holds something else), 130 interrupted (rerun to resume)."
         ),
     )
     _add_sweep_arguments(sweep)
@@ -510,8 +541,10 @@ def build_parser() -> argparse.ArgumentParser:
         "each starting from the state the previous one left, and average over the second half of each "
         "hold; --down adds the way back. --mason is the Mason number at the reference rate, so the "
         "instantaneous Mn is rate x --mason. One curve per --mason value (in OUT/Mn<value>/ when there "
-        "are several); OUT/flow_curve.csv and OUT/flow_curve.png hold them all. A rerun continues after "
-        "the last finished hold. Exit status: 0 done, 1 a curve failed, 2 bad input, 130 interrupted.",
+        "are several); OUT/flow_curve.csv and OUT/flow_curve.png hold them all. A rerun of the same "
+        "command continues after the last finished hold; --overwrite deletes the previous run in OUT. "
+        "Exit status: 0 done, 1 a curve failed, 2 bad input (or an OUT that holds something else), 130 "
+        "interrupted (Ctrl-C: the finished holds are kept; rerun to continue).",
     )
     _add_flow_curve_arguments(flow_curve)
     flow_curve.set_defaults(parser=flow_curve)
@@ -526,11 +559,18 @@ def _option(flag: str) -> _Option:
 def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim flow-curve``: the suspension and numerics options of ``run`` (one
     value each, ``--mason`` a comma list), the rates, and the task options of ``sweep``."""
+    from sim.flow_curve import MIN_HOLD_STEPS
+
+    helps = {
+        "--dt": f"largest time step (steps may adapt below it), in (0, 0.05]; every hold must take at least "
+        f"{MIN_HOLD_STEPS} and at most {MAX_STEPS:.0e} of them (default {DEFAULT_TIME_STEP})",
+    }
     for flag in ("--phi", "--n-particles", "--field-direction", "--mechanism", "--dt", "--max-displacement",
                  "--near-field", "--near-field-cutoff", "--ewald-accuracy"):
         option = _option(flag)
         parser.add_argument(
-            flag, type=option.type or str, default=option.default, choices=option.choices, help=option.help
+            flag, type=option.type or str, default=option.default, choices=option.choices,
+            help=helps.get(flag, option.help),
         )
     parser.add_argument(
         "--mason", type=_comma_list(_mason_number), default=[1.0], metavar="LIST",
@@ -539,17 +579,25 @@ def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--rates", type=_comma_list(_positive_rate), default=[0.1, 0.3, 1.0, 3.0, 10.0], metavar="LIST",
-        help="shear rates of the upward sweep in units of gammadot_ref, > 0 and increasing "
-        "(default 0.1,0.3,1,3,10)",
+        help=f"shear rates of the upward sweep in units of gammadot_ref, in [{MIN_SHEAR_RATE:g}, "
+        f"{MAX_SHEAR_RATE:g}] and increasing (default 0.1,0.3,1,3,10)",
     )
     parser.add_argument(
         "--strain-per-rate", type=float, default=10.0,
-        help="strain each rate is held for, > 0; the second half is averaged (default 10)",
+        help=f"strain each rate is held for, > 0; the second half is averaged; the hold at the highest rate "
+        f"must take at least {MIN_HOLD_STEPS} steps of --dt (default 10)",
     )
     parser.add_argument("--down", action="store_true", help="add the sweep back down (hysteresis)")
     parser.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
     parser.add_argument(
-        "--out", type=_directory, required=True, help="output directory (created; must not be a file)"
+        "--out", type=_directory, required=True,
+        help="output directory (created; must not be a file); manifest.json names its owner (a rerun of "
+        "the same curve continues after its last finished hold; anything else there is refused)",
+    )
+    _add_folder_arguments(
+        parser,
+        "insist on continuing the curve in OUT after its last finished hold (refused if OUT holds none); "
+        "a rerun of the same curve continues without it",
     )
     parser.add_argument(
         "--workers", type=positive_int, default=1,
@@ -563,10 +611,16 @@ def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _positive_rate(text: str) -> float:
-    """``--rates``: one shear rate, a finite number > 0."""
-    value = _shear_rate(text)
-    if value == 0.0:
-        raise argparse.ArgumentTypeError(f"must be > 0 (a flow curve has no rate-0 point), got {text!r}")
+    """``--rates``: one shear rate, a number in [MIN_SHEAR_RATE, MAX_SHEAR_RATE]."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not MIN_SHEAR_RATE <= value <= MAX_SHEAR_RATE:
+        raise argparse.ArgumentTypeError(
+            f"must be in [{MIN_SHEAR_RATE:g}, {MAX_SHEAR_RATE:g}] (units of the reference rate gammadot_ref; "
+            f"a flow curve has no rate-0 point), got {text!r}"
+        )
     return value
 
 
@@ -794,6 +848,7 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
 
     from sim.io import json_ready, read_json
     from sim.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.runs.folder import RunFolderError
     from sim.sweep import MANIFEST, manifest_text, run_points
 
     if not args.quiet and args.scheduler is None and not compiled_kernels_cached():
@@ -809,10 +864,14 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
             command=["python", "-m", "sim", *args_list],
             arguments=arguments,
             log=None if args.quiet else _log,
+            resume=args.resume,
+            overwrite=args.overwrite,
         )
     except KeyboardInterrupt:
         print(f"{parser.prog}: interrupted; rerun the same command to resume", file=sys.stderr)
         return 130
+    except RunFolderError as exc:
+        parser.error(with_flags(str(exc)))
     except (OSError, RuntimeError) as exc:
         if args.scheduler is None:
             raise
@@ -833,10 +892,23 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
     return 1 if failed else 0
 
 
-def _flow_curve(args: argparse.Namespace) -> int:
+def _flow_curve(args: argparse.Namespace, args_list: list[str]) -> int:
     """``python -m sim flow-curve``."""
-    from sim.flow_curve import FlowCurveSpec, curve_folder, resume_point, run_flow_curve_task, write_combined
+    from sim.flow_curve import (
+        COMMAND,
+        CSV_NAME,
+        PLOT_NAME,
+        FlowCurveSpec,
+        check_curve_folder,
+        curve_folder,
+        curve_identity,
+        read_rows,
+        resume_point,
+        run_flow_curve_task,
+        write_combined,
+    )
     from sim.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.runs.folder import RunFolderError, claim
     from sim.tasks import TaskFailure, run_tasks
 
     parser: argparse.ArgumentParser = args.parser
@@ -853,33 +925,68 @@ def _flow_curve(args: argparse.Namespace) -> int:
             specs.append(FlowCurveSpec(config, tuple(args.rates), args.strain_per_rate, args.down))
         except ValueError as exc:
             parser.error(with_flags(str(exc)))
-    folders = [out if len(specs) == 1 else out / curve_folder(s.config.mason_number) for s in specs]
-    for spec, folder in zip(specs, folders, strict=True):
-        try:
-            resume_point(folder, spec)  # a folder holding another curve is refused before any work
-        except ValueError as exc:
-            parser.error(with_flags(str(exc)).replace("out_dir", "--out"))
+    several = len(specs) > 1
+    folders = [out / curve_folder(s.config.mason_number) if several else out for s in specs]
+    command = ["python", "-m", "sim", *args_list]
+    # every folder and every file a rerun continues from is checked before any work
+    try:
+        found, legacy = check_curve_folder(out, specs, args.resume, args.overwrite, "--out")
+        if found in ("same", "adopted"):
+            for spec, folder in zip(specs, folders, strict=True):
+                if several and check_curve_folder(folder, [spec], flag="--out")[0] not in ("same", "adopted"):
+                    continue
+                try:
+                    resume_point(folder, spec)
+                except ValueError as exc:
+                    raise RunFolderError(
+                        f"--out {out}: {exc}; give --overwrite to delete the previous run and start afresh"
+                    ) from None
+        if several:  # the folder of the curves (each curve claims its own sub-folder)
+            claim(out, COMMAND, curve_identity(specs), resume=args.resume, overwrite=args.overwrite,
+                  argv=command, legacy=legacy)
+    except RunFolderError as exc:
+        parser.error(with_flags(str(exc)))
     if not args.quiet and args.scheduler is None and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
     show_bar = not args.quiet and sys.stderr.isatty()
     payloads = [
-        {**spec.to_dict(), "out": str(folder), "progress": show_bar and len(specs) == 1}
+        {
+            **spec.to_dict(), "out": str(folder), "progress": show_bar and not several, "command": command,
+            "resume": args.resume and not several, "overwrite": args.overwrite and not several,
+            "flag": "--out",
+        }
         for spec, folder in zip(specs, folders, strict=True)
     ]
+
+    def written() -> str:
+        """The csv files that hold finished holds now, with their counts."""
+        kept = []
+        for folder, spec in zip(folders, specs, strict=True):
+            path = folder / CSV_NAME
+            try:
+                done = len(read_rows(path)) if path.is_file() else 0
+            except (OSError, ValueError, TypeError):
+                done = 0
+            if done:
+                kept.append(f"{path} ({min(done, len(spec.holds))} of {len(spec.holds)} holds)")
+        return "; ".join(kept)
+
     try:
         results = run_tasks(
             run_flow_curve_task, payloads, workers=args.workers, scheduler=args.scheduler, on_error="record",
-            progress=show_bar and len(specs) > 1, description="flow curves",
+            progress=show_bar and several, description="flow curves",
         )
     except KeyboardInterrupt:
-        print(f"{parser.prog}: interrupted; rerun the same command to continue", file=sys.stderr)
+        kept = written()
+        what = f"the finished holds are kept in {kept}" if kept else "no hold had finished"
+        print(f"{parser.prog}: interrupted; {what}; rerun the same command to continue", file=sys.stderr)
         return 130
     curves = {
         spec.config.mason_number: rows
         for spec, rows in zip(specs, results, strict=True)
         if not isinstance(rows, TaskFailure)
     }
-    if len(specs) > 1 and curves:
+    if several and curves:
         write_combined(out, curves)
     failed = 0
     for spec, rows in zip(specs, results, strict=True):
@@ -895,8 +1002,8 @@ def _flow_curve(args: argparse.Namespace) -> int:
                     f"Mn {row['mason_number']:<8.3g} eta_r {row['relative_viscosity']:.3f} "
                     f"+- {row['relative_viscosity_stderr']:.3f}  N1 {row['n1']:.3g}  N2 {row['n2']:.3g}"
                 )
-    if not args.quiet:
-        print(f"{out / 'flow_curve.csv'}, {out / 'flow_curve.png'}")
+    if curves and not args.quiet:  # only the files written (none when every curve failed)
+        print(", ".join(str(path) for path in (out / CSV_NAME, out / PLOT_NAME) if path.is_file()))
     return 1 if failed else 0
 
 
@@ -942,5 +1049,5 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.command == "sweep":
         return _sweep(args, args_list)
     if args.command == "flow-curve":
-        return _flow_curve(args)
+        return _flow_curve(args, args_list)
     return _figures(args)

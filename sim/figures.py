@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sim.io import save_figure
 from sim.observables.layering import (
     AXIS_NAMES,
     LAYERED_MIN_STRUCTURE_FACTOR,
@@ -45,7 +46,7 @@ def plot_rheology(records: StepRecords, path: Path, transient: float, title: str
         axes[0].set_title(title)
     handles, labels = axes[0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="outside upper center", ncol=3, fontsize="small", frameon=False)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -92,7 +93,7 @@ def plot_layering(series: LayerOrderSeries, summary: LayerSummary, transient: fl
         fontsize="small",
     )
     ax.legend(fontsize="small", frameon=False)
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -141,5 +142,5 @@ def plot_viscosity_curve(
     ax_n.set_ylabel(r"normal stress difference / $\eta\dot\gamma$")
     ax_n.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)

@@ -21,11 +21,14 @@ A run directory holds:
 ``msd.csv``        per lag: ``lag_strain`` (mean lag; time a/U0 when quiescent), ``msd_xx``, ``msd_yy``,
                    ``msd_zz`` (units a^2; x non-affine) over all origins after the transient
 ``stress.png``     eta_r, N1, N2 against strain
+``manifest.json``  the folder's owner, written first: command (``sim run``), its parameters (the
+                   identity a rerun is compared with), command line, version and source digest
+                   (:mod:`sim.runs.folder`, the run-folder protocol shared by every command)
 ================== ==================================================================================
 
-Every file but the plot is written atomically (:func:`atomic_file`: a temporary file in the same folder,
-then ``os.replace``): a run killed while writing leaves the previous version or the new one, never a
-truncated file.
+Every file, the plots included, is written atomically (:func:`atomic_file`: a temporary file in the same
+folder, then ``os.replace``; figures through :func:`save_figure`): a run killed while writing leaves the
+previous version or the new one, never a truncated file.
 """
 
 from __future__ import annotations
@@ -122,6 +125,13 @@ def write_text_atomically(path: Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically (:func:`atomic_file`)."""
     with atomic_file(path) as handle:
         handle.write(text.encode())
+
+
+def save_figure(figure: Any, path: Path, **options: Any) -> None:
+    """``figure.savefig`` into ``path`` atomically (:func:`atomic_file`); the format is the suffix's."""
+    path = Path(path)
+    with atomic_file(path) as handle:
+        figure.savefig(handle, format=path.suffix.lstrip(".") or "png", **options)
 
 
 def write_json(path: Path, data: dict[str, Any]) -> None:
@@ -244,7 +254,7 @@ _UNREADABLE = (OSError, EOFError, ValueError, KeyError, TypeError, IndexError, z
 
 
 @contextlib.contextmanager
-def _open_checkpoint(path: Path) -> Iterator[Any]:
+def open_checkpoint(path: Path) -> Iterator[Any]:
     """The ``.npz`` archive at ``path`` (never unpickling), or :class:`CheckpointError` saying what is
     wrong: a directory in its place, an empty file, a file that is not an ``.npz`` archive, a truncated
     one, or one that lacks what a checkpoint holds. ``FileNotFoundError`` when nothing is there."""
@@ -280,7 +290,7 @@ def load_checkpoint_observables(path: Path) -> dict[str, np.ndarray]:
     """The observable accumulators of a checkpoint (prefix removed); empty for a checkpoint without.
 
     Raises :class:`CheckpointError` for a file that is not a readable checkpoint."""
-    with _open_checkpoint(path) as data:
+    with open_checkpoint(path) as data:
         return {
             name[len(OBSERVABLE_PREFIX) :]: np.array(data[name])
             for name in data.files
@@ -296,7 +306,7 @@ def load_checkpoint(path: Path) -> tuple[SimulationConfig, SimulationState, Step
         CheckpointError: (a ``ValueError``) anything else that is not a readable checkpoint, named with
             what is wrong (a directory, an empty, truncated, foreign or non-``.npz`` file).
     """
-    with _open_checkpoint(path) as data:
+    with open_checkpoint(path) as data:
         config = SimulationConfig.from_dict(json.loads(str(data["config"])))
         return (
             config,

@@ -23,6 +23,8 @@ from sim import io
 from sim.config import MAX_STEPS, SimulationConfig
 from sim.figures import plot_rheology
 from sim.run_observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
+from sim.runs.folder import RunFolderError, claim, normalise, preview, read_manifest
+from sim.runs.legacy import legacy_markers
 from sim.simulation import Simulation, StepRecords
 from sim.state import SimulationState
 from sim.step_parameters import field_strength
@@ -120,6 +122,18 @@ RUN_FILES = (
 """The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run."""
 
 
+COMMAND = "sim run"
+"""How a run's folder names its owner in ``manifest.json`` (:mod:`sim.runs.folder`)."""
+
+
+def run_identity(
+    config: SimulationConfig, sample_interval: float = DEFAULT_SAMPLE_INTERVAL
+) -> dict[str, Any]:
+    """The parameters that make a run's results what they are (its folder's identity in the manifest):
+    every field of ``config`` and the observables' ``sample_interval``."""
+    return {**config.to_dict(), "sample_interval": float(sample_interval)}
+
+
 def _saved_config(out: Path) -> SimulationConfig | None:
     """The configuration of the run in ``out`` (its ``params.json``, else its checkpoint), None if neither
     can be read."""
@@ -133,47 +147,84 @@ def _saved_config(out: Path) -> SimulationConfig | None:
         return None
 
 
-def _check_run_folder(
-    out: Path, config: SimulationConfig, resume: bool, overwrite: bool, names: Mapping[str, str] | None
-) -> None:
-    """Refuse to start a fresh run in a folder that already holds a run (``ValueError``).
+def _run_differences(resume: bool) -> Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]]:
+    """``compare`` of :func:`sim.runs.folder.claim` for a run: the identity keys (in order) whose values
+    differ between the saved and the requested run, ``strain`` left out with ``resume`` (extending a run),
+    keys the saved identity lacks (a folder written before they existed) left out, and
+    ``sample_interval`` left out (continuing from a checkpoint checks it, naming it:
+    :meth:`RunObservables.for_run`; a run without a checkpoint starts afresh)."""
 
-    A folder holds a run when it holds one of :data:`RUN_FILES`. Without ``resume`` or ``overwrite`` such
-    a folder is refused, whether its run has other parameters (they are named), is an interrupted run of
-    the same parameters (continue it with ``resume``) or a finished one (a rerun would only repeat it bit
-    for bit: ``resume`` rewrites its results, ``overwrite`` runs it again).
+    def compare(saved: Mapping[str, Any], requested: Mapping[str, Any]) -> list[str]:
+        old, new = normalise(saved), normalise(requested)
+        keys = [key for key in new if key in old and old[key] != new[key] and key != "sample_interval"]
+        return [key for key in keys if not (resume and key == "strain")]
+
+    return compare
+
+
+def _check_run_folder(
+    out: Path, identity: dict[str, Any], resume: bool, overwrite: bool, names: Mapping[str, str] | None
+) -> tuple[str, tuple[str, ...]]:
+    """What a run finds in ``out`` (the ``state`` of :func:`sim.runs.folder.claim`, and the pre-manifest
+    files by which it adopts a folder), or :class:`RunFolderError` (a ``ValueError``); nothing is written.
+
+    The protocol's rules (:mod:`sim.runs.folder`): a folder holding a run of the same parameters is
+    continued (from its checkpoint; a finished run's results are rewritten, unchanged), ``resume`` also
+    continues one of a smaller ``strain`` (extending it), ``overwrite`` deletes whatever run the folder
+    holds; a run of other parameters is refused naming them (``ValueError``), as is another command's
+    folder or a non-empty folder that no command owns. A folder written before manifests (``params.json``,
+    ``checkpoint.npz``, ``result.json``) is compared through its ``params.json`` (else its checkpoint).
     """
     out_flag, resume_flag, overwrite_flag = (_name(n, names) for n in ("out_dir", "resume", "overwrite"))
     if resume and overwrite:
-        raise ValueError(f"{resume_flag} and {overwrite_flag} exclude each other")
-    if resume or overwrite or not out.is_dir():
-        return
-    present = [name for name in RUN_FILES if (out / name).exists()]
-    if not present:
-        return
-    ways = f"choose another {out_flag}, or give {overwrite_flag} to delete its files and start afresh"
-    saved = _saved_config(out)
-    if saved is None:
-        raise ValueError(
-            f"{out_flag} {out} holds files of another run ({', '.join(present)}) whose parameters cannot be "
-            f"read; {ways}"
-        )
-    old, new = saved.to_dict(), config.to_dict()
-    differing = [f for f in old if old[f] != new.get(f)]
-    if differing:
-        listed = ", ".join(f"{_name(f, names)} ({old[f]!r} there, {new[f]!r} requested)" for f in differing)
-        extend = (
-            f"; {resume_flag} continues it to the new {_name('strain', names)}"
-            if differing == ["strain"] and (out / "checkpoint.npz").exists()
-            else ""
-        )
-        raise ValueError(f"{out_flag} {out} holds a run with different parameters: {listed}{extend}; {ways}")
-    state = "a finished run" if (out / "result.json").exists() else "an interrupted run"
-    raise ValueError(
-        f"{out_flag} {out} already holds {state} of these parameters; give {resume_flag} to continue it "
-        f"(a finished run's results are rewritten, unchanged) or {overwrite_flag} to run it again from the "
-        "start"
+        raise RunFolderError(f"{resume_flag} and {overwrite_flag} exclude each other")
+    legacy = legacy_markers(out, COMMAND, overwrite, out_flag, overwrite_flag)
+    if not overwrite and out.is_dir():
+        ways = f"choose another {out_flag}, or give {overwrite_flag} to delete its files and start afresh"
+        manifest = read_manifest(out)
+        saved: dict[str, Any] | None = None
+        if manifest is not None and manifest.command == COMMAND:
+            saved = io.from_json_ready(manifest.params)
+        elif manifest is None and legacy:
+            config = _saved_config(out)
+            if config is None:
+                raise RunFolderError(
+                    f"{out_flag} {out} holds files of another run ({', '.join(legacy)}) whose parameters "
+                    f"cannot be read; {ways}"
+                )
+            saved = config.to_dict()
+        if saved is not None:
+            differing = _run_differences(resume)(saved, identity)
+            if differing:
+                listed = ", ".join(
+                    f"{_name(f, names)} ({saved[f]!r} there, {identity[f]!r} requested)" for f in differing
+                )
+                if resume:
+                    raise RunFolderError(
+                        f"{resume_flag}: {out_flag} {out} holds a run with different parameters: {listed}; "
+                        f"only {_name('strain', names)} may differ (to extend a run); {ways}"
+                    )
+                extend = (
+                    f"; {resume_flag} continues it to the new {_name('strain', names)}"
+                    if differing == ["strain"] and (out / "checkpoint.npz").exists()
+                    else ""
+                )
+                raise RunFolderError(
+                    f"{out_flag} {out} holds a run with different parameters: {listed}{extend}; {ways}"
+                )
+    state = preview(
+        out,
+        COMMAND,
+        identity,
+        resume=resume,
+        overwrite=overwrite,
+        legacy=legacy,
+        compare=_run_differences(resume),
+        flag=out_flag,
+        resume_flag=resume_flag,
+        overwrite_flag=overwrite_flag,
     )
+    return state, legacy
 
 
 def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
@@ -198,19 +249,20 @@ def _differing_parameters(saved: SimulationConfig, requested: SimulationConfig) 
 
 
 def _load_resumable(
-    checkpoint: Path, config: SimulationConfig, names: Mapping[str, str] | None
+    checkpoint: Path, config: SimulationConfig, names: Mapping[str, str] | None, how: str | None = None
 ) -> tuple[SimulationState, StepRecords, float]:
-    """State, records and wall time of ``checkpoint`` if ``config`` may continue it, else ``ValueError``.
+    """State, records and wall time of ``checkpoint`` if ``config`` may continue it, else ``ValueError``
+    (``FileNotFoundError`` when there is none); messages start with ``how`` (default: the resume flag).
 
     Only ``strain`` may differ from the checkpoint's parameters (extending a run), and the checkpoint
     may not hold a step that a run to ``config.strain`` would not take (one starting at or after it).
     """
-    resume = _name("resume", names)
-    if not checkpoint.exists():
+    resume = how or _name("resume", names)
+    if not (checkpoint.exists() or checkpoint.is_symlink()):
         raise FileNotFoundError(f"{resume}: no checkpoint at {checkpoint}")
     try:
         saved_config, state, records, wall_before = io.load_checkpoint(checkpoint)
-    except io.CheckpointError as exc:
+    except (io.CheckpointError, OSError) as exc:
         raise io.CheckpointError(f"{resume}: {exc}") from None
     differing = _differing_parameters(saved_config, config)
     if differing:
@@ -283,24 +335,30 @@ def run_simulation(
     sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
     overwrite: bool = False,
 ) -> dict[str, Any]:
-    """Run (or resume) a simulation, writing its files to ``out_dir``; return the result dictionary.
+    """Run (or continue) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
     Every check of the input happens before anything is written: a refused run leaves no directory
-    behind, and a folder that already holds a run (any of :data:`RUN_FILES`) is refused unless
-    ``resume`` or ``overwrite`` is given, even for a rerun of the same parameters (see
-    :func:`_check_run_folder`). Before ``params.json`` is written, the files of the earlier run that the
-    new one will rewrite are deleted (with ``resume``, all but the checkpoint), so an interrupted run
-    never leaves stale results beside its parameters.
+    behind. The folder follows the run-folder protocol (:mod:`sim.runs.folder`, :func:`_check_run_folder`):
+    ``manifest.json`` (command ``sim run``, identity :func:`run_identity`) is written first; a folder
+    holding this run (same parameters) is continued from its checkpoint, bit for bit (a finished run's
+    results are rewritten unchanged); ``resume`` insists on a run to continue and may extend its
+    ``strain``; ``overwrite`` deletes the folder's previous run, whatever made it; a run of other
+    parameters, another command's folder and a non-empty folder without a manifest are refused. The
+    checkpoint a run continues from is validated first (a damaged one is named with what is wrong).
+    Before ``params.json`` is written, the files of the earlier run that the new one will rewrite are
+    deleted (when continuing, all but the checkpoint), so an interrupted run never leaves stale results
+    beside its parameters.
 
     Args:
         config: the run's parameters; ``strain`` must be > 0 and leave a sample after the transient.
-        out_dir: output directory (created). With ``resume=True`` it must hold a ``checkpoint.npz`` written
-            with the same parameters except possibly a smaller ``strain`` (the run is then extended); the
-            run continues bit-identically to an uninterrupted run of ``config``.
+        out_dir: output directory (created). With ``resume=True`` it must hold a run of the same parameters
+            except possibly a smaller ``strain`` (the run is then extended); the run continues from its
+            ``checkpoint.npz`` bit-identically to an uninterrupted run of ``config``.
         progress: show a progress bar; ``None`` means only when stderr is a terminal. Unless ``False``,
             a note goes to stderr before kernels are compiled (the first run of these sources).
-        resume: continue from ``out_dir/checkpoint.npz``.
-        overwrite: start afresh in a folder that holds another run (or the same one), deleting its files.
+        resume: continue the run in ``out_dir`` (from its checkpoint), possibly to a longer ``strain``.
+        overwrite: delete the run in ``out_dir`` (every file of the folder, whichever command made it) and
+            start afresh.
         command: the command line, recorded in ``params.json``.
         parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
             the command line passes its flags. Field names by default.
@@ -322,8 +380,9 @@ def run_simulation(
         arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`).
 
     Raises:
-        ValueError: bad input (the message names the parameter), a folder holding a run without
-        ``resume`` or ``overwrite``, or both of them; FileNotFoundError: ``resume`` without a
+        ValueError: bad input (the message names the parameter); :class:`sim.runs.folder.RunFolderError`
+        (a ``ValueError``) for a folder this run may not use, ``resume`` without a run to continue, or
+        ``resume`` with ``overwrite``; :class:`sim.io.CheckpointError` (a ``ValueError``) for a damaged
         checkpoint; NotImplementedError: a configuration the simulator does not support yet;
         SimulationError: a step failed.
     """
@@ -340,29 +399,44 @@ def run_simulation(
     ):
         raise ValueError(f"{_name('sample_interval', names)} must be finite and > 0, got {sample_interval!r}")
     _check_output_directory(out, names)
-    _check_run_folder(out, config, resume, overwrite, names)
+    identity = run_identity(config, sample_interval)
+    found, legacy = _check_run_folder(out, identity, resume, overwrite, names)
     checkpoint = out / "checkpoint.npz"
     state: SimulationState | None = None
     records: StepRecords | None = None
     wall_before = 0.0
     saved_observables: dict[str, np.ndarray] = {}
-    if resume:
-        state, records, wall_before = _load_resumable(checkpoint, config, names)
+    continuing = found in ("same", "adopted") and (checkpoint.exists() or checkpoint.is_symlink())
+    if continuing:
+        out_flag, overwrite_flag = _name("out_dir", names), _name("overwrite", names)
+        how = _name("resume", names) if resume else f"{out_flag} {out} holds this run (to continue)"
+        fix = f"; give {overwrite_flag} to delete that run and start afresh"
         try:
+            state, records, wall_before = _load_resumable(checkpoint, config, names, how)
             saved_observables = io.load_checkpoint_observables(checkpoint)
-        except io.CheckpointError as exc:
-            raise io.CheckpointError(f"{_name('resume', names)}: {exc}") from None
+        except io.CheckpointError as exc:  # a damaged checkpoint, named with what is wrong
+            message = str(exc) if str(exc).startswith(how) else f"{how}: {exc}"
+            raise io.CheckpointError(message + fix) from None
     observables = RunObservables.for_run(config, float(sample_interval), records, saved_observables, names)
     if progress is not False and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
     sim = Simulation(config, state)
     if records is not None:
         sim.records = records
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"{_name('out_dir', names)} {out} cannot be created: {exc.strerror}") from exc
-    _remove_outputs(out, keep=("checkpoint.npz",) if resume else ())
+    claim(
+        out,
+        COMMAND,
+        identity,
+        resume=resume,
+        overwrite=overwrite,
+        argv=command,
+        legacy=legacy,
+        compare=_run_differences(resume),
+        flag=_name("out_dir", names),
+        resume_flag=_name("resume", names),
+        overwrite_flag=_name("overwrite", names),
+    )
+    _remove_outputs(out, keep=("checkpoint.npz",) if continuing else ())
     io.write_params(out, config, command)
     wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress, observables)
     return _write_results(sim, out, checkpoint, wall, observables)

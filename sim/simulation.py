@@ -21,7 +21,9 @@ from typing import Any
 import numpy as np
 
 from sim.config import SimulationConfig, check_shear_rate
+from sim.geometry.box import lees_edwards_offset, wrap_positions
 from sim.geometry.configurations import random_packing
+from sim.integrators import shift_crossed_velocities
 from sim.observables.stress import (
     N_CONTRIBUTIONS,
     STRESS_CONTRIBUTIONS,
@@ -195,7 +197,9 @@ class Simulation:
 
     Args:
         config: the run's parameters (its ``mason_number`` and ``field_direction`` are the initial field).
-        state: start from a copy of this state instead of a fresh random packing.
+        state: start from a copy of this state instead of a fresh random packing. Its positions may lie
+            anywhere (a centred box, images of the primary box): they are wrapped into the primary box
+            ``[0, L)^3`` as the simulator's own states are (:meth:`enter`); non-finite ones are refused.
         keep_records: keep every step's records (needed by :meth:`rheology`); environments that only
             read each chunk's records pass False so that memory stays flat.
 
@@ -218,13 +222,7 @@ class Simulation:
             state = SimulationState.initial(
                 positions, config.mason_number, config.field_direction, config.shear_rate
             )
-        if state.positions.shape != (config.n_particles, 3):
-            raise ValueError(
-                f"state has {state.positions.shape[0]} particles but config.n_particles={config.n_particles}"
-            )
-        self.state = state.copy()  # the caller's state object is never stepped
-        if math.isnan(self.state.shear_rate):  # a state that does not say: the configuration's rate
-            self.state.shear_rate = config.shear_rate
+        self.state = self.enter(state)  # a wrapped copy: the caller's state object is never stepped
         self.keep_records = keep_records
         self._chunks: list[StepRecords] = []
         self._params = with_shear_rate(step_parameters(config), self.state.shear_rate)
@@ -312,12 +310,49 @@ class Simulation:
         """Copy of the current state, field included (restore it with :meth:`restore`)."""
         return self.state.copy()
 
+    def enter(self, state: SimulationState) -> SimulationState:
+        """A copy of ``state`` as this simulation steps it: positions wrapped into the primary box
+        ``[0, L)^3`` and the shear rate set (the configuration's where the state leaves it NaN).
+
+        The box is periodic with the Lees–Edwards rule (:func:`sim.geometry.box.wrap_positions`): a
+        position ``n`` periods above the box in ``y`` is the image ``(x - n delta, y - n L, z)`` with the
+        offset ``delta`` of the state's strain, so a configuration shifted by any lattice vector (or
+        centred on the origin, as GSD files store it) is the same configuration and runs the same, to
+        round-off. The image moves ``n L gammadot`` slower in ``x``, so a wrapped particle's last-step
+        velocity (the AB2 history) is shifted by that. Positions already in the box are left bit for
+        bit (a snapshot restores exactly).
+
+        Raises:
+            ValueError: positions of another shape than ``(config.n_particles, 3)``, or not finite.
+        """
+        positions = np.asarray(state.positions)
+        if positions.shape != (self.config.n_particles, 3):
+            raise ValueError(
+                f"state has positions of shape {positions.shape}: config.n_particles="
+                f"{self.config.n_particles} needs ({self.config.n_particles}, 3)"
+            )
+        if not np.all(np.isfinite(positions)):
+            bad = int(np.count_nonzero(~np.all(np.isfinite(positions), axis=1)))
+            raise ValueError(f"state positions must be finite: {bad} particles have NaN or inf coordinates")
+        if not math.isfinite(state.strain):
+            raise ValueError(f"state strain must be finite, got {state.strain!r}")
+        entered = state.copy()
+        if math.isnan(entered.shear_rate):  # a state that does not say: the configuration's rate
+            entered.shear_rate = self.config.shear_rate
+        entered.positions = np.ascontiguousarray(entered.positions, dtype=np.float64)
+        box_length = self.config.box_length
+        crossings = wrap_positions(
+            entered.positions, box_length, lees_edwards_offset(entered.strain, box_length)
+        )
+        if entered.has_previous and np.any(crossings):
+            entered.previous_velocity = np.ascontiguousarray(entered.previous_velocity, dtype=np.float64)
+            shift_crossed_velocities(entered.previous_velocity, crossings, box_length, entered.shear_rate)
+        return entered
+
     def restore(self, state: SimulationState, keep_records: bool = False) -> None:
-        """Continue from ``state`` (field and shear rate included); the step records are cleared unless
-        ``keep_records``."""
-        self.state = state.copy()
-        if math.isnan(self.state.shear_rate):
-            self.state.shear_rate = self.config.shear_rate
+        """Continue from ``state`` (field and shear rate included; its positions wrapped into the box as
+        in :meth:`enter`); the step records are cleared unless ``keep_records``."""
+        self.state = self.enter(state)
         self._params = with_shear_rate(self._params, self.state.shear_rate)
         if not keep_records:
             self._chunks = []

@@ -15,7 +15,8 @@ class SimulationState:
     """Everything the next step depends on; restoring it continues a run bit for bit.
 
     Attributes:
-        positions: (N, 3) float64 wrapped positions in [0, L)^3 (units a).
+        positions: (N, 3) float64 wrapped positions in [0, L)^3 (units a); :class:`sim.Simulation` wraps a
+            state's positions into the box when it takes it (:meth:`sim.Simulation.enter`).
         previous_velocity: (N, 3) float64 total velocity of the last step, for AB2 (units a gammadot).
         warm_start: (N, 6) float64 last disturbance velocity ``[U - u_inf, Omega - omega_inf]``.
         previous_warm_start: (N, 6) float64 the one before; the PCG initial guess extrapolates the two.
@@ -75,10 +76,19 @@ class SimulationState:
         shear_rate: float = math.nan,
     ) -> SimulationState:
         """State at rest before the first step, with the initial field and shear rate (NaN: the
-        configuration's rate, set by :class:`sim.Simulation`)."""
+        configuration's rate, set by :class:`sim.Simulation`).
+
+        ``positions`` (N, 3) may lie anywhere (a centred box, images of the primary box): the simulation
+        wraps them into ``[0, L)^3`` when it takes the state (:meth:`sim.Simulation.enter`). Non-finite
+        positions are refused here (``ValueError``): they cannot be wrapped."""
+        positions = np.array(positions, dtype=np.float64)
+        if positions.ndim != 2 or positions.shape[1] != 3:
+            raise ValueError(f"positions must have shape (N, 3), got {positions.shape}")
+        if not np.all(np.isfinite(positions)):
+            raise ValueError("positions must be finite (NaN or inf cannot be wrapped into the box)")
         n = positions.shape[0]
         return cls(
-            positions=np.ascontiguousarray(positions, dtype=np.float64).copy(),
+            positions=np.ascontiguousarray(positions),
             previous_velocity=np.zeros((n, 3)),
             warm_start=np.zeros((n, 6)),
             previous_warm_start=np.zeros((n, 6)),

@@ -15,12 +15,21 @@ parallel map (:func:`sim.tasks.run_tasks`) of :func:`run_point` over points. A p
 A point that fails is recorded (``error.json`` in its folder: exception, message, traceback) and the
 others go on. ``OUT/sweep.json`` lists the command and every point with its status and files; it is
 rewritten as each point finishes.
+
+Folders follow the run-folder protocol (:mod:`sim.runs.folder`). The sweep claims ``OUT`` as
+``sim sweep``; its identity (:func:`sweep_identity`) is what every point shares: the options that do not
+name a point (time step, transient, near field, ...) and the longest ``strain``. A rerun may add points
+(more ``--phi``, ``--mason``, ``--seeds``, ...) and a longer strain (the points are extended); other
+shared options, or a shorter strain (which would redo and so delete the longer runs), are refused unless
+``overwrite`` deletes the whole sweep. Each point's folder is a ``sim run`` folder, claimed by its run
+(:func:`sim.run.run_simulation`); before any work, every point folder that exists must be one (or a
+pre-manifest run, or hold only a failed point's ``error.json``), so that a sweep never writes into, or
+deletes, a folder it did not make.
 """
 
 from __future__ import annotations
 
 import datetime
-import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,6 +37,8 @@ from typing import Any
 
 from sim.config import SimulationConfig
 from sim.io import read_json, versions, write_json
+from sim.runs.folder import RunFolderError, claim, differing, normalise, preview, read_manifest
+from sim.runs.legacy import legacy_command, legacy_markers
 from sim.tasks import TaskFailure, run_tasks
 
 MANIFEST = "sweep.json"
@@ -214,10 +225,66 @@ def _now() -> str:
     return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
 
 
-def _write_atomically(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    write_json(tmp, data)
-    os.replace(tmp, path)
+COMMAND = "sim sweep"
+"""How a sweep's folder names its owner in ``manifest.json`` (:mod:`sim.runs.folder`)."""
+
+POINT_FIELDS = ("volume_fraction", "n_particles", "mason_number", "mechanism", "seed", "field_direction")
+"""The configuration fields that name a point (:func:`run_name`): a sweep may add points that differ in
+them."""
+
+
+def sweep_identity(configs: Sequence[SimulationConfig]) -> dict[str, Any]:
+    """The identity of a sweep's folder: every configuration field but :data:`POINT_FIELDS` and
+    ``strain``, with its value (or the sorted list of its values where the points differ), and the
+    longest ``strain``."""
+    values: dict[str, list[Any]] = {}
+    for config in configs:
+        for key, value in config.to_dict().items():
+            if key in POINT_FIELDS or key == "strain":
+                continue
+            seen = values.setdefault(key, [])
+            if value not in seen:
+                seen.append(value)
+    identity: dict[str, Any] = {
+        key: seen[0] if len(seen) == 1 else sorted(seen, key=repr) for key, seen in values.items()
+    }
+    identity["strain"] = max((config.strain for config in configs), default=0.0)
+    return identity
+
+
+def _sweep_differences(saved: Any, requested: Any) -> list[str]:
+    """``compare`` of :func:`sim.runs.folder.claim` for a sweep: the differing keys, ``strain`` only when
+    the requested one is shorter (a longer strain extends the points)."""
+    keys = [key for key in differing(saved, requested) if key != "strain"]
+    old, new = normalise(saved).get("strain"), normalise(requested).get("strain")
+    if isinstance(old, int | float) and isinstance(new, int | float) and new < old:
+        keys.append("strain")
+    return keys
+
+
+def _check_point_folder(folder: Path, flag: str) -> None:
+    """Refuse (:class:`RunFolderError`) a point folder that the sweep may not use: anything but a missing
+    folder, a ``sim run`` folder (with its manifest, or written before manifests), or one that holds only
+    a failed point's ``error.json``."""
+    if not folder.exists():
+        return
+    if not folder.is_dir():
+        raise RunFolderError(f"{flag}: the point {folder} exists and is not a folder")
+    manifest = read_manifest(folder)
+    if manifest is not None:
+        if manifest.command != "sim run":
+            raise RunFolderError(
+                f"{flag}: the point folder {folder} belongs to another command ({manifest.command!r}); "
+                f"choose another {flag}, or give --overwrite to delete the whole sweep and start afresh"
+            )
+        return
+    entries = sorted(entry.name for entry in folder.iterdir() if entry.name != ERROR_FILE)
+    if entries and legacy_command(folder) != "sim run":
+        shown = ", ".join(entries[:5]) + (", ..." if len(entries) > 5 else "")
+        raise RunFolderError(
+            f"{flag}: the point folder {folder} is not empty ({shown}) and holds no run of a sweep; move "
+            f"it away, or choose another {flag}"
+        )
 
 
 NAME_PRECISION = {
@@ -261,12 +328,15 @@ def run_points(
     command: list[str] | None = None,
     arguments: dict[str, Any] | None = None,
     log: Callable[[str], None] | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
 ) -> list[SweepPoint]:
     """Run every configuration into ``out_dir/<run_name>``; failures are recorded and the rest go on.
 
-    Finished points are reused and interrupted ones resumed (module docstring). ``out_dir/sweep.json``
-    (command, arguments, source digest, every point's status, result and error files, counts) is
-    written before the first point starts and rewritten as each point finishes.
+    Finished points are reused and interrupted ones resumed (module docstring). ``out_dir`` is claimed
+    first (``manifest.json``, :mod:`sim.runs.folder`); then ``out_dir/sweep.json`` (command, arguments,
+    source digest, every point's status, result and error files, counts) is written before the first
+    point starts and rewritten as each point finishes.
 
     Args:
         configs: the points (distinct folder names: see :func:`check_unique_names`).
@@ -277,16 +347,30 @@ def run_points(
         command: the command line, recorded in ``sweep.json`` and in every run's ``params.json``.
         arguments: the parsed arguments, recorded in ``sweep.json``.
         log: called with one line per point as it finishes (and one for the reused ones).
+        resume: insist on continuing a sweep already in ``out_dir`` (refused when there is none).
+        overwrite: delete the sweep in ``out_dir`` (everything in it) and start afresh.
 
     Returns:
         The points in input order; ``status`` is ``reused``, ``finished``, ``resumed`` or ``failed``.
 
     Raises:
-        ValueError: two points share a folder name, or ``workers < 1``.
+        ValueError: two points share a folder name, or ``workers < 1``; :class:`RunFolderError` (a
+        ``ValueError``, before anything is written): a folder the sweep may not use (module docstring).
     """
     check_unique_names(configs)
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    identity = sweep_identity(configs)
+    legacy = legacy_markers(out, COMMAND, overwrite)
+    options: dict[str, Any] = dict(
+        resume=resume, overwrite=overwrite, legacy=legacy, compare=_sweep_differences
+    )
+    found = preview(out, COMMAND, identity, **options)
+    if found in ("same", "adopted"):
+        for config in configs:
+            _check_point_folder(out / run_name(config), "--out")
+    claim(out, COMMAND, identity, argv=command, **options)
     digest = _source_digest()
     points = []
     for config in configs:
@@ -310,7 +394,7 @@ def run_points(
     def write_manifest() -> None:
         counts = {status: sum(p.status == status for p in points) for status in STATUSES}
         manifest.update(updated=_now(), counts=counts, points=[p.entry() for p in points])
-        _write_atomically(out / MANIFEST, manifest)
+        write_json(out / MANIFEST, manifest)
 
     write_manifest()
     reused = [p for p in points if p.status == "reused"]
@@ -371,13 +455,23 @@ def run_sweep(
     processes: int = 2,
     scheduler: str | None = None,
     progress: bool = False,
+    resume: bool = False,
+    overwrite: bool = False,
 ) -> list[dict[str, Any]]:
     """Run ``configs`` with ``processes`` worker processes (or on a Dask cluster); results in input order.
 
     :func:`run_points` with the results only; if any point failed, the others still finish and then
     :class:`SweepError` lists the failures (``error.json`` in each failed point's folder).
     """
-    points = run_points(configs, out_dir, workers=processes, scheduler=scheduler, progress=progress)
+    points = run_points(
+        configs,
+        out_dir,
+        workers=processes,
+        scheduler=scheduler,
+        progress=progress,
+        resume=resume,
+        overwrite=overwrite,
+    )
     failed = [p for p in points if p.failure is not None]
     if failed:
         listed = "; ".join(f"{p.name}: {p.failure.error}: {p.failure.message}" for p in failed if p.failure)

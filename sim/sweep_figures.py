@@ -32,6 +32,7 @@ mechanism, near field, ...) form separate series, drawn into separate files name
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -40,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.io import read_json
+from sim.io import read_json, save_figure, write_text_atomically
 
 MARON_PIERCE_PHI_MAX = 0.63
 """Maximum packing fraction of the Maron–Pierce curve ``(1 - phi/phi_m)^-2`` drawn for reference."""
@@ -402,7 +403,7 @@ def _bar(error: float) -> float:
 
 
 def _save(fig: Any, path: Path, written: list[Path]) -> None:
-    fig.savefig(path, dpi=PNG_DPI)
+    save_figure(fig, path, dpi=PNG_DPI)
     written.append(path)
 
 
@@ -715,11 +716,12 @@ def summary_rows(series_list: Sequence[Series]) -> list[dict[str, Any]]:
 
 def write_summary(rows: Sequence[dict[str, Any]], path: Path) -> None:
     """``summary.csv``: floats in full precision (``repr``), ``inf`` and ``nan`` as words."""
-    with path.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=SUMMARY_COLUMNS)
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
+    handle = io.StringIO(newline="")
+    writer = csv.DictWriter(handle, fieldnames=SUMMARY_COLUMNS)
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: repr(v) if isinstance(v, float) else v for k, v in row.items()})
+    write_text_atomically(Path(path), handle.getvalue())
 
 
 def make_figures(

@@ -55,6 +55,8 @@ def assert_refused(status: int, err: str, needle: str) -> None:
     assert "_--" not in err, err  # a flag spliced into a longer word ("transient_--strain")
 
 
+RATE_RANGE = "argument --shear-rate: must be 0 (quiescent) or in [0.001, 1000]"
+
 BAD_INPUTS = [
     (["--phi", "0.7"], "--phi must be in [0.001, 0.6], got 0.7"),
     (["--phi", "1e-9"], "--phi must be in [0.001, 0.6], got 1e-09"),  # was a MemoryError
@@ -94,8 +96,13 @@ BAD_INPUTS = [
     (["--mason", "nan"], "argument --mason: must be in (0, inf], got 'nan'"),
     (["--mason", "big"], "argument --mason: must be a number in (0, inf] or 'inf', got 'big'"),
     (["--mason", "inf", "--shear-rate", "0"], "--mason must be finite when --shear-rate = 0"),
-    (["--shear-rate", "-2"], "argument --shear-rate: must be a finite number >= 0 (units of the reference"),
-    (["--shear-rate", "nan"], "argument --shear-rate: must be a finite number >= 0"),
+    (["--shear-rate", "-2"], RATE_RANGE + " (units of the reference rate gammadot_ref), got '-2'"),
+    (["--shear-rate", "nan"], RATE_RANGE),
+    (["--shear-rate", "1e-300"], RATE_RANGE + " (units of the reference rate gammadot_ref), got '1e-300'"),
+    (["--shear-rate", "1e-4"], RATE_RANGE),  # issue 45: eta_r = Sigma_xy / rate blows up below the floor
+    (["--shear-rate", "2000"], RATE_RANGE),
+    (["--over"], "unrecognized arguments: --over"),  # issue 45: no prefix matching (was --overwrite)
+    (["--resum"], "unrecognized arguments: --resum"),
     (["--mechanism", "both"], "argument --mechanism: invalid choice: 'both'"),
     (["--bogus"], "unrecognized arguments: --bogus"),  # with run's usage, not the top-level one
 ]
@@ -138,7 +145,7 @@ def test_out_is_an_existing_file(tmp_path: Path, capsys) -> None:
 def test_resume_without_checkpoint_leaves_no_folder(tmp_path: Path, capsys) -> None:
     out = tmp_path / "never-run"
     status, _, err = run_cli(["--out", str(out), *RUN_ARGS, "--resume"], capsys)
-    assert_refused(status, err, f"--resume: no checkpoint at {out / 'checkpoint.npz'}")
+    assert_refused(status, err, f"--resume: --out {out} holds no run to continue")
     assert not out.exists()
 
 
@@ -247,7 +254,7 @@ def test_resume_with_other_parameters_names_them(finished_run, tmp_path: Path, c
     shutil.copytree(finished_run[0], out)
     args = [*RUN_ARGS, "--out", str(out), "--resume", "--seed", "2", "--dt", "0.001"]
     status, _, err = run_cli(args, capsys)
-    assert_refused(status, err, "--resume: the checkpoint in")
+    assert_refused(status, err, f"--resume: --out {out} holds a run with different parameters")
     message = err.splitlines()[-1]
     listed = "--seed (1 there, 2 requested), --dt (0.002 there, 0.001 requested); "
     assert "different parameters: " + listed in message
@@ -277,24 +284,29 @@ def test_resume_extends_the_strain(finished_run, tmp_path: Path, capsys) -> None
 
 def test_a_folder_holding_another_run_is_refused(finished_run, tmp_path: Path, capsys) -> None:
     """Was: ``--seed 2 --out DIR`` over another run's folder overwrote it with exit 0. Refused (exit 2,
-    the folder and the differing flags named, files untouched); the same command again is refused with
-    the ways in; ``--overwrite`` replaces the run; ``--resume --overwrite`` is refused by argparse."""
+    the folder and the differing flags named, files untouched); the same command again continues the run
+    (the run-folder protocol, issue 45: here nothing is left to step, the results are rewritten
+    unchanged); ``--overwrite`` replaces the run; ``--resume --overwrite`` is refused by argparse."""
     out = tmp_path / "copy"
     shutil.copytree(finished_run[0], out)
-    before = (out / "result.json").read_bytes()
+    before = json.loads((out / "result.json").read_text())
     status, _, err = run_cli([*RUN_ARGS[:-2], "--seed", "2", "--out", str(out)], capsys)
     assert_refused(status, err, f"--out {out} holds a run with different parameters: --seed (1 there, 2 ")
     assert "give --overwrite to delete its files" in err
-    status, _, err = run_cli([*RUN_ARGS, "--out", str(out)], capsys)
-    assert_refused(status, err, f"--out {out} already holds a finished run of these parameters; give ")
-    assert "give --resume to continue it" in err
-    assert (out / "result.json").read_bytes() == before
+    assert json.loads((out / "result.json").read_text()) == before
+    status, stdout, _ = run_cli([*RUN_ARGS, "--out", str(out), "--json"], capsys)
+    assert status == 0
+    again = json.loads(stdout.strip().splitlines()[-1])
+    assert {k: v for k, v in again.items() if k != "wall_seconds"} == {
+        k: v for k, v in before.items() if k != "wall_seconds"
+    }
     status, _, err = run_cli([*RUN_ARGS, "--out", str(out), "--resume", "--overwrite"], capsys)
     assert status == 2 and "--overwrite: not allowed with argument --resume" in err
     args = [*RUN_ARGS[:-2], "--seed", "2", "--out", str(out), "--overwrite", "--json"]
     status, stdout, _ = run_cli(args, capsys)
     assert status == 0 and json.loads(stdout.strip().splitlines()[-1])["seed"] == 2
     assert json.loads((out / "params.json").read_text())["config"]["seed"] == 2
+    assert json.loads((out / "manifest.json").read_text())["params"]["seed"] == 2
 
 
 def test_help_lists_overwrite(capsys) -> None:
@@ -338,17 +350,21 @@ BAD_CHECKPOINTS = [
 ]
 
 
+@pytest.mark.parametrize("resume", [True, False], ids=["--resume", "a plain rerun"])
 @pytest.mark.parametrize(("spoil", "what"), BAD_CHECKPOINTS)
 def test_resume_from_a_bad_checkpoint_exits_2_naming_it(
-    spoil: Callable[[Path], None], what: str, finished_run, tmp_path: Path, capsys
+    spoil: Callable[[Path], None], what: str, resume: bool, finished_run, tmp_path: Path, capsys
 ) -> None:
-    """Was: a traceback (numpy's allow_pickle message, BadZipFile, IsADirectoryError, KeyError)."""
+    """Was: a traceback (numpy's allow_pickle message, BadZipFile, IsADirectoryError, KeyError). A plain
+    rerun continues the run too (issue 45), so it validates the checkpoint the same way."""
     out = tmp_path / "copy"
     shutil.copytree(finished_run[0], out)
     checkpoint = out / "checkpoint.npz"
     spoil(checkpoint)
-    status, _, err = run_cli([*RUN_ARGS, "--out", str(out), "--resume"], capsys)
-    assert_refused(status, err, f"--resume: {checkpoint} {what}")
+    status, _, err = run_cli([*RUN_ARGS, "--out", str(out), *(["--resume"] if resume else [])], capsys)
+    how = "--resume" if resume else f"--out {out} holds this run (to continue)"
+    assert_refused(status, err, f"{how}: {checkpoint} {what}")
+    assert "; give --overwrite to delete that run and start afresh" in err
     assert "Traceback" not in err and "allow_pickle" not in err
 
 

@@ -18,6 +18,7 @@ import sim.run
 from sim import SimulationConfig, SimulationState, run_simulation
 from sim.io import OBSERVABLE_PREFIX
 from sim.run import COMPILE_NOTICE, check_run_length, compiled_kernels_cached
+from sim.runs.folder import MANIFEST, RunFolderError, claim, normalise, read_manifest
 
 SHORT = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=3)
 """10 steps of N = 40."""
@@ -68,7 +69,7 @@ def test_refused_runs_write_nothing(tmp_path: Path) -> None:
         run_simulation(SHORT, existing, progress=False)
     with pytest.raises(ValueError, match="out_dir must name a directory, got ''"):
         run_simulation(SHORT, "", progress=False)
-    with pytest.raises(FileNotFoundError, match="resume: no checkpoint at"):
+    with pytest.raises(RunFolderError, match=r"resume: out_dir .*none holds no run to continue"):
         run_simulation(SHORT, tmp_path / "none", progress=False, resume=True)
     assert not (tmp_path / "none").exists()
 
@@ -267,12 +268,17 @@ def test_compiled_kernels_cached_reads_this_checkouts_cache(tmp_path: Path, monk
     assert not compiled_kernels_cached()
 
 
-def test_a_folder_holding_another_run_is_refused_unless_resumed_or_overwritten(tmp_path: Path) -> None:
-    """Was: a run with another seed overwrote the folder's run with no complaint. A folder holding a run
-    is refused (naming the differing parameters) and left untouched; the same parameters are refused too,
-    with the ways in; ``overwrite`` replaces the run, ``resume`` and ``overwrite`` exclude each other."""
+def test_a_folder_holding_another_run_is_refused_unless_overwritten(tmp_path: Path) -> None:
+    """The run-folder protocol (issue 45). Was: a run with another seed overwrote the folder's run with
+    no complaint (issue 16), then the same parameters were refused too. Now the manifest names the owner:
+    a run of other parameters is refused (naming them) and left untouched, a longer strain needs
+    ``resume``, a rerun of the same parameters continues (a finished run's results rewritten, unchanged),
+    ``overwrite`` deletes the previous run, ``resume`` and ``overwrite`` exclude each other."""
     out = tmp_path / "o"
-    run_simulation(SHORT, out, progress=False)
+    first = run_simulation(SHORT, out, progress=False)
+    manifest = read_manifest(out)
+    assert manifest is not None and manifest.command == "sim run"
+    assert manifest.params == normalise(sim.run.run_identity(SHORT))
     before = {name: (out / name).read_bytes() for name in ("params.json", "result.json", "checkpoint.npz")}
     other = dataclasses.replace(SHORT, seed=4)
     with pytest.raises(ValueError) as refused:
@@ -282,26 +288,63 @@ def test_a_folder_holding_another_run_is_refused_unless_resumed_or_overwritten(t
     assert "n_particles" not in message and "overwrite" in message
     with pytest.raises(ValueError, match="resume continues it to the new strain"):
         run_simulation(LONG, out, progress=False)
-    with pytest.raises(ValueError, match="already holds a finished run of these parameters; give resume"):
-        run_simulation(SHORT, out, progress=False)
     with pytest.raises(ValueError, match="resume and overwrite exclude each other"):
         run_simulation(SHORT, out, progress=False, resume=True, overwrite=True)
     assert {name: (out / name).read_bytes() for name in before} == before
-    (out / "result.json").unlink()
-    with pytest.raises(ValueError, match="already holds an interrupted run of these parameters"):
-        run_simulation(SHORT, out, progress=False)
-    (out / "params.json").write_text("{")  # unreadable: the checkpoint tells the parameters
-    with pytest.raises(ValueError, match=r"seed \(3 there, 4 requested\)"):
-        run_simulation(other, out, progress=False)
-    (out / "checkpoint.npz").unlink()
-    with pytest.raises(ValueError, match="holds files of another run .*params.json.* cannot be read"):
-        run_simulation(other, out, progress=False)
+    again = run_simulation(SHORT, out, progress=False)  # the same run: continued, nothing left to step
+    for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "min_gap"):
+        assert again[key] == first[key], key
     result = run_simulation(other, out, progress=False, overwrite=True)
     assert result["seed"] == 4 and sim.io.read_json(out / "result.json")["seed"] == 4
     assert sim.io.read_json(out / "params.json")["config"]["seed"] == 4
-    (tmp_path / "unrelated").mkdir()
-    (tmp_path / "unrelated" / "notes.txt").write_text("x")  # no run files: a fresh run may go there
-    run_simulation(SHORT, tmp_path / "unrelated", progress=False)
+    assert read_manifest(out).params["seed"] == 4  # type: ignore[union-attr]
+
+
+def test_a_run_folder_written_before_manifests_is_adopted(tmp_path: Path) -> None:
+    """A folder of ``params.json``/``checkpoint.npz``/``result.json`` without a manifest is a run of an
+    older ``sim``: compared through its params.json (else its checkpoint), continued when it is this run
+    (the manifest is added), refused when it is another one or cannot be read."""
+    out = tmp_path / "o"
+    run_simulation(SHORT, out, progress=False)
+    (out / MANIFEST).unlink()
+    other = dataclasses.replace(SHORT, seed=4)
+    differing = r"holds a run with different parameters: seed \(3 there, 4 requested\)"
+    with pytest.raises(ValueError, match=differing):
+        run_simulation(other, out, progress=False)
+    (out / "params.json").write_text("{")  # unreadable: the checkpoint tells the parameters
+    with pytest.raises(ValueError, match=r"seed \(3 there, 4 requested\)"):
+        run_simulation(other, out, progress=False)
+    run_simulation(SHORT, out, progress=False)  # adopted and continued
+    assert read_manifest(out).command == "sim run"  # type: ignore[union-attr]
+    (out / MANIFEST).unlink()
+    (out / "checkpoint.npz").unlink()
+    (out / "params.json").write_text("{")
+    with pytest.raises(ValueError, match=r"holds files of another run \(params.json.*cannot be read"):
+        run_simulation(other, out, progress=False)
+    assert run_simulation(other, out, progress=False, overwrite=True)["seed"] == 4
+
+
+def test_unknown_and_foreign_folders(tmp_path: Path) -> None:
+    """A non-empty folder without a manifest is refused, even with ``overwrite`` (it may hold anything);
+    another command's folder is refused, and ``overwrite`` deletes all of it (issue 45: ``sim run
+    --overwrite`` on a flow-curve folder left flow_curve.csv/.png beside the new run)."""
+    unrelated = tmp_path / "unrelated"
+    unrelated.mkdir()
+    (unrelated / "notes.txt").write_text("x")
+    for overwrite in (False, True):
+        with pytest.raises(RunFolderError, match=r"is not empty \(notes.txt\) and holds no manifest.json"):
+            run_simulation(SHORT, unrelated, progress=False, overwrite=overwrite)
+    assert [p.name for p in unrelated.iterdir()] == ["notes.txt"]
+    curve = tmp_path / "curve"
+    claim(curve, "sim flow-curve", {"rates": [1.0]})
+    for name in ("flow_curve.csv", "flow_curve.png", "params.json", "checkpoint.npz"):
+        (curve / name).write_text("x")
+    with pytest.raises(RunFolderError, match="belongs to another command .'sim flow-curve'"):
+        run_simulation(SHORT, curve, progress=False)
+    run_simulation(SHORT, curve, progress=False, overwrite=True)
+    left = {p.name for p in curve.iterdir()}
+    assert "flow_curve.csv" not in left and "flow_curve.png" not in left and "result.json" in left
+    assert read_manifest(curve).command == "sim run"  # type: ignore[union-attr]
 
 
 @pytest.mark.parametrize("resume", [False, True])
@@ -322,7 +365,7 @@ def test_an_interrupted_rerun_leaves_no_old_result_beside_its_parameters(
         run_simulation(new, out, progress=False, resume=resume, overwrite=not resume)
     assert SimulationConfig.from_dict(sim.io.read_json(out / "params.json")["config"]) == new
     left = sorted(p.name for p in out.iterdir())
-    assert left == (["checkpoint.npz", "params.json"] if resume else ["params.json"])
+    assert left == (["checkpoint.npz", MANIFEST, "params.json"] if resume else [MANIFEST, "params.json"])
 
 
 def _partial_then_fail(file: Any, *args: Any, **kwargs: Any) -> None:
@@ -408,3 +451,33 @@ def test_deferred_interrupt_sets_a_flag_then_restores_the_handler() -> None:
         signal.raise_signal(signal.SIGINT)  # no KeyboardInterrupt here
         assert interrupted()
     assert signal.getsignal(signal.SIGINT) is previous
+
+
+def test_figures_are_written_atomically(tmp_path: Path, monkeypatch) -> None:
+    """Issue 45: the plots (stress.png, layering.png, flow_curve.png, the sweep figures) were saved
+    straight into their files. Every figure goes through :func:`sim.io.save_figure` (a failure half-way
+    keeps the previous file, and no temporary file is left)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = tmp_path / "stress.png"
+    path.write_bytes(b"previous")
+    figure = plt.figure()
+
+    def half_then_full_disk(self: Any, handle: Any, **kwargs: Any) -> None:
+        handle.write(b"half a png")
+        raise OSError("No space left on device")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(type(figure), "savefig", half_then_full_disk)
+        with pytest.raises(OSError, match="No space left"):
+            sim.io.save_figure(figure, path)
+    assert path.read_bytes() == b"previous" and [p.name for p in tmp_path.iterdir()] == ["stress.png"]
+    sim.io.save_figure(figure, path, dpi=40)
+    assert path.read_bytes().startswith(b"\x89PNG")
+    plt.close(figure)
+    root = Path(sim.__file__).parent
+    direct = [p.name for p in root.rglob("*.py") if ".savefig(" in p.read_text() and p.name != "io.py"]
+    assert direct == [], f"figures saved without sim.io.save_figure in {direct}"

@@ -7,7 +7,16 @@ import math
 
 import pytest
 
-from sim.runs.folder import MANIFEST, RunFolderError, check_writable_parent, claim, differing, read_manifest
+from sim.runs.folder import (
+    MANIFEST,
+    RunFolderError,
+    check_writable_parent,
+    claim,
+    differing,
+    preview,
+    read_manifest,
+)
+from sim.runs.legacy import legacy_command, legacy_markers
 
 
 def test_new_folder_is_created_and_claimed_with_manifest_first(tmp_path) -> None:
@@ -103,3 +112,54 @@ def test_file_in_place_of_folder_garbage_manifest_and_unwritable_parent(tmp_path
     with pytest.raises(RunFolderError, match="exists and is not a folder"):
         check_writable_parent(tmp_path / "f" / "below")
     check_writable_parent(tmp_path / "fine" / "deeper")
+
+
+def test_preview_tells_what_claim_would_do_and_writes_nothing(tmp_path) -> None:
+    """A command checks its folder (and then the files it would continue from) before any work, and claims
+    it only once everything is in order: preview raises what claim would raise, and writes nothing."""
+    out = tmp_path / "a" / "b"
+    assert preview(out, "sim run", {"seed": 1}) == "new" and not (tmp_path / "a").exists()
+    with pytest.raises(RunFolderError, match="holds no run to continue .no such folder."):
+        preview(out, "sim run", {"seed": 1}, resume=True)
+    assert not (tmp_path / "a").exists()  # was: claim made the folder, then refused --resume
+    with pytest.raises(RunFolderError, match="holds no run to continue"):
+        claim(out, "sim run", {"seed": 1}, resume=True)
+    assert not (tmp_path / "a").exists()
+    claim(out, "sim run", {"seed": 1})
+    (out / "result.json").write_text("{}")
+    assert preview(out, "sim run", {"seed": 1}, resume=True) == "same"
+    assert preview(out, "sim run", {"seed": 2}, overwrite=True) == "overwritten"
+    assert (out / "result.json").exists()
+    with pytest.raises(RunFolderError, match="seed=1 there, seed=2 requested"):
+        preview(out, "sim run", {"seed": 2})
+
+
+def test_legacy_folders_of_sim_commands_are_recognised(tmp_path) -> None:
+    """Which sim command wrote a folder before manifests: adopted by that command, refused (naming it) by
+    the others unless they overwrite it; unknown files are not a sim folder."""
+    run, curve, several, sweep, unknown = (tmp_path / n for n in ("run", "curve", "several", "sweep", "x"))
+    for folder in (run, curve, several / "Mn1", several / "Mn2", sweep, unknown):
+        folder.mkdir(parents=True)
+    (run / "params.json").write_text(json.dumps({"config": {}}))
+    (curve / "params.json").write_text(json.dumps({"flow_curve": {}}))
+    for sub in ("Mn1", "Mn2"):
+        (several / sub / "flow_curve.csv").write_text("")
+    (sweep / "sweep.json").write_text("{}")
+    (unknown / "notes.txt").write_text("")
+    found = {f.name: legacy_command(f) for f in (run, curve, several, sweep, unknown, tmp_path / "none")}
+    assert found == {
+        "run": "sim run",
+        "curve": "sim flow-curve",
+        "several": "sim flow-curve",
+        "sweep": "sim sweep",
+        "x": None,
+        "none": None,
+    }
+    assert legacy_markers(run, "sim run", overwrite=False) == ("params.json",)
+    assert legacy_markers(several, "sim flow-curve", overwrite=False) == ("Mn1", "Mn2")
+    with pytest.raises(RunFolderError, match=r"--out .*curve holds a run of sim flow-curve written before"):
+        legacy_markers(curve, "sim run", overwrite=False)
+    assert legacy_markers(curve, "sim run", overwrite=True) == ("params.json",)
+    assert legacy_markers(unknown, "sim run", overwrite=True) == ()
+    claim(curve, "sim run", {}, overwrite=True, legacy=("params.json",))
+    assert [p.name for p in curve.iterdir()] == [MANIFEST]

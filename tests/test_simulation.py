@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -82,3 +83,20 @@ def test_resume_with_other_parameters_is_refused(tmp_path) -> None:
     )
     with pytest.raises(ValueError, match="different parameters"):
         run_simulation(other, tmp_path, progress=False, resume=True)
+
+
+@pytest.mark.parametrize("rate", [1e-300, 1e-9, 9e-4, 1001.0, 1e20])
+def test_a_shear_rate_outside_the_range_is_refused(rate: float) -> None:
+    """Issue 45: ``set_shear_rate(1e-300)`` gave eta_r = -9.7e288 (eta_r = Sigma_xy / rate). Rates are 0
+    or in [MIN_SHEAR_RATE, MAX_SHEAR_RATE] (sim.config.check_shear_rate), in the configuration and in
+    ``set_shear_rate``; nothing changes when one is refused."""
+    simulation = Simulation(CONFIG)
+    before = simulation.snapshot()
+    with pytest.raises(ValueError, match=r"shear_rate must be 0 \(quiescent\) or in \[0.001, 1000\]"):
+        simulation.set_shear_rate(rate)
+    assert simulation.shear_rate == before.shear_rate == 1.0
+    with pytest.raises(ValueError, match=r"shear_rate must be 0 \(quiescent\) or in \[0.001, 1000\]"):
+        dataclasses.replace(CONFIG, shear_rate=rate)
+    for edge in (1e-3, 1e3):
+        simulation.set_shear_rate(edge)
+        assert simulation.shear_rate == edge

@@ -118,11 +118,11 @@ def test_interrupted_sweep_resumes_only_unfinished_points(tmp_path, monkeypatch)
     base = dict(n_particles=40, strain=0.04, transient_strain=0.01, checkpoint_every=0.02)
     configs = [SimulationConfig(volume_fraction=phi, seed=1, **base) for phi in (0.2, 0.3, 0.4, 0.45)]
     finished_early, killed, half_way, stale = (out / run_name(c) for c in configs)
+    run_points([configs[0], configs[1], configs[3]], out, workers=1)
     # the half-way point: a run to strain 0.02 whose params.json names the 0.04 run (as a kill leaves it)
     first_half = dataclasses.replace(configs[2], strain=0.02)
     run_simulation(first_half, half_way, progress=False)
     (half_way / "result.json").unlink()
-    run_points([configs[0], configs[1], configs[3]], out, workers=1)
     params = json.loads((half_way / "params.json").read_text())
     params["config"]["strain"] = 0.04
     (half_way / "params.json").write_text(json.dumps(params))

@@ -135,7 +135,10 @@ BAD_INPUTS = [
     (["--preset", "huge"], "--preset: no preset 'huge' (available: "),
     (["--preset", "small", "--spec", "x.yml"], "argument --spec: not allowed with argument --preset"),
     (["--spec", "/nonexistent/sweep.yml"], "--spec /nonexistent/sweep.yml: cannot be read"),
-    (["--resume"], "unrecognized arguments: --resume"),
+    (["--resume"], "--resume: --out {out} holds no run to continue"),  # issue 45: as in run
+    (["--resume", "--overwrite"], "argument --overwrite: not allowed with argument --resume"),
+    (["--seed", "3"], "unrecognized arguments: --seed 3"),  # issue 45: was taken as --seeds 3
+    (["--shear-rate", "1e-9"], "argument --shear-rate: must be 0 (quiescent) or in [0.001, 1000]"),
 ]
 
 
@@ -145,7 +148,7 @@ def test_bad_input_exits_2_naming_the_flag(args: list[str], needle: str, tmp_pat
     status, _, err = sweep_cli(["--out", str(out), *TINY, *args], capsys)
     assert status == 2, err
     assert err.startswith("usage: python -m sim sweep "), err
-    assert PREFIX + needle in err, err
+    assert PREFIX + needle.replace("{out}", str(out)) in err, err
     assert "volume_fraction" not in err and "n_particles" not in err and "mason_number" not in err, err
     assert not out.exists()  # refused before anything is written
 
@@ -261,3 +264,60 @@ def test_process_exit_status() -> None:
     )
     assert proc.returncode == 2
     assert PREFIX + "--phi must be in [0.001, 0.6], got 0.7" in proc.stderr
+
+
+def test_the_sweep_folder_follows_the_run_folder_protocol(tmp_path: Path, capsys) -> None:
+    """Issue 45: the sweep claims OUT (manifest.json, command ``sim sweep``) and every point folder is a
+    ``sim run`` folder. A rerun may add points and lengthen --strain; other shared options and a shorter
+    --strain (which would redo, and so delete, the longer runs) are refused naming the flag, unless
+    --overwrite deletes the whole sweep; another command's folder, or an unknown one, is refused."""
+    out = tmp_path / "sweep"
+    args = ["--phi", "0.3", "--out", str(out), *TINY]
+    assert sweep_cli(args, capsys)[0] == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["command"] == "sim sweep" and manifest["params"]["time_step"] == 0.002
+    point = out / "phi0.300_N40_Mninf_seed1"
+    assert json.loads((point / "manifest.json").read_text())["command"] == "sim run"
+    result = (point / "result.json").read_bytes()
+    status, stdout, _ = sweep_cli([*args, "--seeds", "1-2"], capsys)  # one more point
+    assert status == 0 and "2 points: 1 reused, 1 finished" in stdout
+    status, _, err = sweep_cli([*args, "--dt", "0.001"], capsys)
+    assert status == 2 and PREFIX + f"--out {out} holds a run of sim sweep with other parameters: --dt" in err
+    status, _, err = sweep_cli([*args, "--strain", "0.01"], capsys)
+    assert status == 2 and "--strain=0.02 there, --strain=0.01 requested" in err, err
+    assert (point / "result.json").read_bytes() == result  # nothing was touched
+    status, stdout, _ = sweep_cli([*args, "--dt", "0.001", "--overwrite"], capsys)
+    assert status == 0 and "1 points: 1 finished" in stdout
+    assert not (out / "phi0.300_N40_Mninf_seed2").exists()  # the previous sweep is gone
+    assert json.loads((out / "manifest.json").read_text())["params"]["time_step"] == 0.001
+    status, _, err = sweep_cli(["--phi", "0.3", "--out", str(point), *TINY], capsys)
+    assert status == 2 and PREFIX + f"--out {point} belongs to another command ('sim run'" in err
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("x")
+    status, _, err = sweep_cli(["--phi", "0.3", "--out", str(mine), "--overwrite", *TINY], capsys)
+    assert status == 2 and "is not empty (notes.txt) and holds no manifest.json" in err
+    assert [p.name for p in mine.iterdir()] == ["notes.txt"]
+
+
+def test_a_point_folder_the_sweep_did_not_make_is_refused_before_any_work(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "sweep"
+    args = ["--phi", "0.3", "--out", str(out), *TINY]
+    assert sweep_cli(args, capsys)[0] == 0
+    stranger = out / "phi0.400_N40_Mninf_seed1"
+    stranger.mkdir()
+    (stranger / "notes.txt").write_text("x")
+    status, _, err = sweep_cli([*args[:1], "0.3,0.4", *args[2:]], capsys)
+    assert status == 2 and f"the point folder {stranger} is not empty (notes.txt)" in err, err
+    assert [p.name for p in stranger.iterdir()] == ["notes.txt"]
+
+
+def test_a_sweep_written_before_manifests_is_adopted(tmp_path: Path, capsys) -> None:
+    out = tmp_path / "sweep"
+    args = ["--phi", "0.3", "--out", str(out), *TINY]
+    assert sweep_cli(args, capsys)[0] == 0
+    (out / "manifest.json").unlink()
+    (out / "phi0.300_N40_Mninf_seed1" / "manifest.json").unlink()
+    status, stdout, _ = sweep_cli(args, capsys)
+    assert status == 0 and "1 points: 1 reused" in stdout
+    assert json.loads((out / "manifest.json").read_text())["command"] == "sim sweep"

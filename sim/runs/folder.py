@@ -30,13 +30,16 @@ The rules, the same for every command:
   is added; the command's own checks of its old files still run).
 * A path that exists and is not a folder, or a folder that cannot be written, is refused.
 
-Commands map :class:`RunFolderError` to exit status 2 with its message.
+Commands map :class:`RunFolderError` to exit status 2 with its message. :func:`preview` tells what
+:func:`claim` would do (or raises what it would raise) without writing anything, so that a command can
+check its folder, then validate the files it would continue from, before it claims the folder and works.
 """
 
 from __future__ import annotations
 
 import datetime
 import json
+import os
 import shutil
 import sys
 from collections.abc import Callable, Mapping, Sequence
@@ -171,6 +174,73 @@ class Claim:
     manifest: Manifest
 
 
+def preview(
+    folder: str | Path,
+    command: str,
+    params: Mapping[str, Any],
+    *,
+    resume: bool = False,
+    overwrite: bool = False,
+    legacy: Sequence[str] = (),
+    compare: Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]] | None = None,
+    flag: str = "--out",
+    resume_flag: str = "--resume",
+    overwrite_flag: str = "--overwrite",
+) -> str:
+    """What :func:`claim` would find in ``folder`` (its ``state``: ``"new"``, ``"same"``, ``"adopted"`` or
+    ``"overwritten"``), or the :class:`RunFolderError` it would raise; nothing is created or written.
+
+    A command checks its folder with this before any work (and before it validates the files it would
+    continue from), and claims it once everything is known to be in order."""
+    folder = Path(folder)
+    if resume and overwrite:
+        raise RunFolderError(f"{resume_flag} and {overwrite_flag} exclude each other")
+    if folder.exists() and not folder.is_dir():
+        raise RunFolderError(f"{flag} {folder} exists and is not a folder")
+    if not folder.exists():
+        if resume:
+            raise RunFolderError(f"{resume_flag}: {flag} {folder} holds no run to continue (no such folder)")
+        check_writable_parent(folder, flag)
+        return "new"
+    try:
+        entries = [entry.name for entry in folder.iterdir()]
+    except OSError as exc:
+        raise RunFolderError(f"{flag} {folder} cannot be used: {exc.strerror or exc}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise RunFolderError(f"{flag} {folder} is not writable")
+    manifest = read_manifest(folder) if MANIFEST in entries else None
+    if manifest is None and entries:
+        owned = [name for name in legacy if (folder / name).exists()]
+        if not owned:
+            shown = ", ".join(sorted(entries)[:5]) + (", ..." if len(entries) > 5 else "")
+            raise RunFolderError(
+                f"{flag} {folder} is not empty ({shown}) and holds no {MANIFEST}, so no command owns it; "
+                f"choose a new or empty folder ({overwrite_flag} never deletes a folder it did not make)"
+            )
+        return "overwritten" if overwrite else "adopted"
+    if manifest is None:
+        if resume:
+            raise RunFolderError(f"{resume_flag}: {flag} {folder} holds no run to continue")
+        return "new"
+    if overwrite:
+        return "overwritten"
+    if manifest.command != command:
+        raise RunFolderError(
+            f"{flag} {folder} belongs to another command ({manifest.command!r}, made by "
+            f"{' '.join(manifest.argv) or 'an unknown command line'}); choose another {flag}, or give "
+            f"{overwrite_flag} to delete that run and start afresh"
+        )
+    keys = (compare or differing)(manifest.params, params)
+    if keys:
+        requested = normalise(params)
+        raise RunFolderError(
+            f"{flag} {folder} holds a run of {command} with other parameters: "
+            f"{_describe(manifest.params, keys)} there, {_describe(requested, keys)} requested; choose "
+            f"another {flag}, or give {overwrite_flag} to delete that run and start afresh"
+        )
+    return "same"
+
+
 def claim(
     folder: str | Path,
     command: str,
@@ -186,7 +256,7 @@ def claim(
     overwrite_flag: str = "--overwrite",
 ) -> Claim:
     """Claim ``folder`` for ``command`` with identity ``params`` (module docstring), or raise
-    :class:`RunFolderError` naming ``flag`` and the folder.
+    :class:`RunFolderError` naming ``flag`` and the folder (then nothing is created or written).
 
     Args:
         legacy: files (or sub-folders) by which a folder this command wrote before manifests existed is
@@ -195,53 +265,31 @@ def claim(
             :func:`differing`); a command that may extend a run (a longer ``strain``) leaves that key out.
     """
     folder = Path(folder)
-    if resume and overwrite:
-        raise RunFolderError(f"{resume_flag} and {overwrite_flag} exclude each other")
-    if folder.exists() and not folder.is_dir():
-        raise RunFolderError(f"{flag} {folder} exists and is not a folder")
+    state = preview(
+        folder,
+        command,
+        params,
+        resume=resume,
+        overwrite=overwrite,
+        legacy=legacy,
+        compare=compare,
+        flag=flag,
+        resume_flag=resume_flag,
+        overwrite_flag=overwrite_flag,
+    )
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        entries = [entry.name for entry in folder.iterdir()]
     except OSError as exc:
-        raise RunFolderError(f"{flag} {folder} cannot be used: {exc.strerror or exc}") from None
-    compare = compare or differing
-    manifest = read_manifest(folder) if MANIFEST in entries else None
-    if manifest is None and entries:
-        owned = [name for name in legacy if (folder / name).exists()]
-        if not owned:
-            shown = ", ".join(sorted(entries)[:5]) + (", ..." if len(entries) > 5 else "")
-            raise RunFolderError(
-                f"{flag} {folder} is not empty ({shown}) and holds no {MANIFEST}, so no command owns it; "
-                f"choose a new or empty folder ({overwrite_flag} never deletes a folder it did not make)"
-            )
-        if overwrite:
-            _clear(folder)
-            return _new(folder, command, params, argv, "overwritten")
-        return Claim(folder, "adopted", write_manifest(folder, command, params, argv))
-    if manifest is None:
-        if resume:
-            raise RunFolderError(f"{resume_flag}: {flag} {folder} holds no run to continue")
-        return _new(folder, command, params, argv, "new")
-    if overwrite:
+        raise RunFolderError(f"{flag} {folder} cannot be created: {exc.strerror or exc}") from None
+    if state == "overwritten":
         _clear(folder)
-        return _new(folder, command, params, argv, "overwritten")
-    if manifest.command != command:
-        raise RunFolderError(
-            f"{flag} {folder} belongs to another command ({manifest.command!r}, made by "
-            f"{' '.join(manifest.argv) or 'an unknown command line'}); choose another {flag}, or give "
-            f"{overwrite_flag} to delete that run and start afresh"
-        )
-    keys = compare(manifest.params, params)
-    if keys:
-        requested = normalise(params)
-        raise RunFolderError(
-            f"{flag} {folder} holds a run of {command} with other parameters: "
-            f"{_describe(manifest.params, keys)} there, {_describe(requested, keys)} requested; choose "
-            f"another {flag}, or give {overwrite_flag} to delete that run and start afresh"
-        )
-    if normalise(params) != manifest.params:  # an allowed change (e.g. a longer strain): record it
-        manifest = write_manifest(folder, command, params, argv)
-    return Claim(folder, "same", manifest)
+    if state == "same":
+        manifest = read_manifest(folder)
+        assert manifest is not None
+        if normalise(params) != manifest.params:  # an allowed change (e.g. a longer strain): record it
+            manifest = write_manifest(folder, command, params, argv)
+        return Claim(folder, state, manifest)
+    return _new(folder, command, params, argv, state)
 
 
 def _new(
@@ -253,8 +301,6 @@ def _new(
 def check_writable_parent(folder: str | Path, flag: str = "--out") -> None:
     """Refuse (``RunFolderError``) an output path whose nearest existing ancestor is not a writable
     folder, before any work starts (``/sys/...``, a path under a file)."""
-    import os
-
     path = Path(folder).absolute()
     for ancestor in (path, *path.parents):
         if ancestor.exists():

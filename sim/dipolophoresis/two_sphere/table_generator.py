@@ -135,7 +135,9 @@ class TableGenerator(Generic[SolutionT]):
     def parser(self) -> argparse.ArgumentParser:
         """The command line shared by the generators."""
         parser = argparse.ArgumentParser(
-            description=self.description, formatter_class=argparse.RawDescriptionHelpFormatter
+            description=self.description,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+            allow_abbrev=False,  # a prefix of a flag is not that flag
         )
         parser.add_argument("--r-max", type=float, default=10.0, help="last node (default 10)")
         parser.add_argument(
