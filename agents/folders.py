@@ -196,3 +196,54 @@ def save_figure(fig: Any, path: Path, **kwargs: Any) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def read_evaluation_log(path: Path) -> dict[str, Any]:
+    """An ``eval/evaluations.npz`` (SB3's ``EvalCallback`` log) as arrays ``timesteps`` (1-D, integers),
+    ``results`` and ``ep_lengths`` (2-D, a row per evaluation); ``ValueError`` naming the file and what is
+    wrong (unreadable or truncated, keys missing, shapes that disagree, non-finite returns)."""
+    import zipfile
+
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            missing = [k for k in ("timesteps", "results", "ep_lengths") if k not in data.files]
+            if missing:
+                raise ValueError(f"{path}: not an evaluation log (lacks {', '.join(missing)})")
+            log = {k: np.asarray(data[k]) for k in ("timesteps", "results", "ep_lengths")}
+    except ValueError as error:
+        if str(error).startswith(str(path)):
+            raise
+        raise ValueError(f"{path} cannot be read as an evaluation log ({error})") from None
+    except (OSError, EOFError, zipfile.BadZipFile, KeyError) as error:
+        raise ValueError(
+            f"{path} cannot be read as an evaluation log ({type(error).__name__}: {error}; truncated?)"
+        ) from None
+    steps, results, lengths = log["timesteps"], log["results"], log["ep_lengths"]
+    shapes_agree = steps.ndim == 1 and results.ndim == 2 and results.shape[0] == steps.size
+    if not shapes_agree or lengths.shape != results.shape:
+        raise ValueError(
+            f"{path}: timesteps {steps.shape}, results {results.shape} and ep_lengths {lengths.shape} do not "
+            "match (one row of returns and lengths per evaluation)"
+        )
+    if not (np.issubdtype(steps.dtype, np.integer) and np.isfinite(results).all() and results.shape[1] > 0):
+        raise ValueError(f"{path}: timesteps must be integers and every return finite")
+    return log
+
+
+def legacy_conflict(
+    folder: Path, source: Path, recorded: Mapping[str, Any], requested: Mapping[str, Any], flag: str = "--out"
+) -> str | None:
+    """Why a folder made before manifests cannot be adopted for the identity ``requested``, or None:
+    ``recorded`` (what its file ``source`` records of the same keys; a key it does not record is not
+    compared) differs. The message names the folder, the file and the keys."""
+    a, b = normalise(recorded), normalise(requested)
+    keys = sorted(k for k in a if k in b and a[k] != b[k])
+    if not keys:
+        return None
+    shown = "; ".join(f"{k}: {a[k]!r} there, {b[k]!r} requested" for k in keys[:4])
+    return (
+        f"{flag} {folder} holds a run made with other parameters ({source.name} records {shown}); choose "
+        f"another {flag}, or give --overwrite to delete that run and start afresh"
+    )
