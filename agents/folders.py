@@ -28,17 +28,22 @@ from pathlib import Path
 from typing import Any
 
 from agents.usage import usage_error
-from sim.runs import MANIFEST, Claim, RunFolderError, claim, read_manifest
+from sim.runs import MANIFEST, Claim, RunFolderError, check_writable_parent, claim, read_manifest
 
 __all__ = [
     "MANIFEST",
     "add_folder_options",
+    "check_parent",
+    "claim_for_script",
     "claim_out",
     "command_line",
     "compare_paths",
+    "legacy_conflict",
     "legacy_markers",
     "normalise",
     "owner",
+    "read_evaluation_log",
+    "report_folder",
     "save_figure",
     "write_command",
     "write_text_atomic",
@@ -116,14 +121,72 @@ def _names_module(command_file: Path, module: str) -> bool:
     return any(a == "-m" and b == module for a, b in zip(words, words[1:], strict=False))
 
 
-def legacy_markers(folder: Path, files: Iterable[str], module: str | None = None) -> list[str]:
+def _names_script(command_file: Path, script: str) -> bool:
+    """Whether ``command_file`` (a ``command.txt``) records a command line that runs ``scripts/<script>``."""
+    try:
+        words = command_file.read_text().split()
+    except (OSError, UnicodeDecodeError):
+        return False
+    return any(Path(word).name == script for word in words[:3])
+
+
+def legacy_markers(
+    folder: Path, files: Iterable[str], module: str | None = None, script: str | None = None
+) -> list[str]:
     """The ``legacy`` markers of a command for :func:`claim_out`: ``files`` (the command's own output
-    files, relative to ``folder``), and ``command.txt`` where it records ``python -m module`` (an
-    interrupted pre-manifest run holds little else; another command's ``command.txt`` is no marker)."""
+    files, relative to ``folder``), and ``command.txt`` where it records ``python -m module`` (or, for a
+    script, ``python scripts/<script>``): an interrupted pre-manifest run holds little else, and another
+    command's ``command.txt`` is no marker."""
     markers = list(files)
-    if module is not None and _names_module(folder / "command.txt", module):
+    command_file = folder / "command.txt"
+    if (module is not None and _names_module(command_file, module)) or (
+        script is not None and _names_script(command_file, script)
+    ):
         markers.append("command.txt")
     return markers
+
+
+def claim_for_script(
+    parser: argparse.ArgumentParser,
+    folder: Path,
+    script: str,
+    params: Mapping[str, Any],
+    *,
+    argv: Sequence[str] | None,
+    resume: bool = False,
+    overwrite: bool = False,
+    legacy: Sequence[str] = (),
+    compare: Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]] | None = None,
+    flag: str = "--out",
+) -> Claim:
+    """:func:`claim_out` for ``scripts/<script>`` (the command ``"scripts/<script>"``): a refusal is
+    ``parser.error`` (exit 2). Also writes ``folder/command.txt`` atomically."""
+    words = [sys.executable, f"scripts/{script}", *(sys.argv[1:] if argv is None else argv)]
+    try:
+        claimed = claim(
+            folder,
+            f"scripts/{script}",
+            params,
+            resume=resume,
+            overwrite=overwrite,
+            argv=words,
+            legacy=legacy,
+            compare=compare,
+            flag=flag,
+        )
+    except RunFolderError as error:
+        parser.error(str(error))
+    write_text_atomic(Path(folder) / "command.txt", " ".join(words) + "\n")
+    return claimed
+
+
+def check_parent(parser: argparse.ArgumentParser, folder: Path, flag: str = "--out") -> None:
+    """:func:`sim.runs.check_writable_parent` for a script: ``parser.error`` (exit 2) before any work when
+    ``folder`` cannot be created or written."""
+    try:
+        check_writable_parent(folder, flag)
+    except RunFolderError as error:
+        parser.error(str(error))
 
 
 def compare_paths(path_keys: Sequence[str]) -> Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]]:
@@ -247,3 +310,42 @@ def legacy_conflict(
         f"{flag} {folder} holds a run made with other parameters ({source.name} records {shown}); choose "
         f"another {flag}, or give --overwrite to delete that run and start afresh"
     )
+
+
+def report_folder(
+    parser: argparse.ArgumentParser,
+    source: Path,
+    out: Path | None,
+    script: str,
+    files: Sequence[str],
+    *,
+    argv: Sequence[str] | None,
+    resume: bool = False,
+    overwrite: bool = False,
+) -> Path:
+    """Where a report script (``scripts/<script>``, which summarises the folder ``source`` into ``files``)
+    writes: beside ``source``'s results when ``out`` is None or ``source`` itself (the reports are derived
+    files of that run, rewritten every time; the folder stays its owner's: nothing is claimed), else the
+    folder ``out``, claimed for the script with the identity ``source`` (:func:`claim_for_script`; a
+    pre-manifest folder that holds ``files`` and is not a sweep is adopted)."""
+    if out is None or out.resolve() == source.resolve():
+        if overwrite:
+            parser.error(
+                f"--overwrite deletes a previous report folder; the reports beside {source} are rewritten "
+                "anyway (give --out for a folder of their own)"
+            )
+        return source
+    check_parent(parser, out)
+    sweep = (out / "sweep.json").exists()  # a sweep's results are not a report's folder
+    claim_for_script(
+        parser,
+        out,
+        script,
+        {"source": os.path.normpath(str(source))},
+        argv=argv,
+        resume=resume,
+        overwrite=overwrite,
+        legacy=[] if sweep else legacy_markers(out, files, script=script),
+        compare=compare_paths(["source"]),
+    )
+    return out
