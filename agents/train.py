@@ -614,9 +614,9 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         )
         raise SystemExit(128 + signal.SIGTERM)
     wall = time.perf_counter() - tic
-    model.save(str(out / "model.zip"))
+    _save_atomic(model.save, out / "model.zip")
     if normalize:
-        env.save(str(out / "vecnormalize.pkl"))
+        _save_atomic(env.save, out / "vecnormalize.pkl")
     eval_cb = callbacks.callbacks[1]
     result = {
         "env_id": env_id,
@@ -635,6 +635,17 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     eval_env.close()
     write_text_atomic(out / "result.json", json.dumps(result, indent=1, allow_nan=False))
     return result
+
+
+def _save_atomic(save: Any, path: Path) -> None:
+    """``save(file)`` (SB3's ``model.save``, ``VecNormalize.save``) into a temporary file beside ``path``
+    (same suffix: SB3 adds ``.zip`` to a name without it), then renamed over ``path``."""
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    try:
+        save(str(tmp))
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:
