@@ -664,7 +664,9 @@ def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``["gamma=0.9", "policy_kwargs={net_arch: [8]}"]`` -> values parsed as YAML."""
+    """``["gamma=0.9", "policy_kwargs={net_arch: [8]}"]`` -> values parsed as YAML (a later ``key=value``
+    overrides an earlier one: ``--hyperparams $SHORT eval_freq=1000``); exit 2 naming an item that is not
+    ``key=value`` or whose value is not YAML."""
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
@@ -673,8 +675,6 @@ def parse_overrides(items: list[str]) -> dict[str, Any]:
         key = key.strip()
         if not key:
             usage_error(PROG, f"--hyperparams takes key=value, got {item!r} (no key)")
-        if key in out:
-            usage_error(PROG, f"--hyperparams sets {key} twice ({item!r}); give each key once")
         try:
             out[key] = yaml.safe_load(value)
         except yaml.YAMLError as error:
@@ -709,7 +709,8 @@ def build_parser() -> argparse.ArgumentParser:
         nargs="*",
         action="extend",
         default=[],
-        help="key=value overrides (YAML values; each key once)",
+        help="key=value overrides (YAML values; a later key=value overrides an earlier one, and every "
+        "--hyperparams option counts)",
     )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
     parser.add_argument(

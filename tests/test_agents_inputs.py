@@ -156,7 +156,6 @@ def test_controllers_split_train_is_refused_by_the_parser(tmp_path: Path, capsys
         (["gamma=[0.9"], "--hyperparams 'gamma=[0.9': the value is not YAML"),
         (["policy_kwargs={net_arch: [-4]}"], "ppo cannot be built with these hyperparameters (RuntimeError"),
         (["policy_kwargs={bogus_argument: 1}"], "unexpected keyword argument 'bogus_argument'"),
-        (["gamma=0.9", "gamma=0.8"], "--hyperparams sets gamma twice"),
         (["=1"], "--hyperparams takes key=value, got '=1' (no key)"),
     ],
 )
@@ -168,6 +167,14 @@ def test_bad_hyperparameters_are_refused_before_the_folder(
     err = refused(capsys, train.main, ["--env", ENV, "--out", str(out), "--hyperparams", *items])
     assert needle in err, err
     assert not out.exists()
+
+
+def test_every_hyperparams_option_counts() -> None:
+    """Was: a second ``--hyperparams`` option replaced the first one's keys (argparse's ``nargs="*"``)."""
+    argv = ["--env", ENV, "--out", "x", "--hyperparams", "gamma=0.9", "--hyperparams", "n_epochs=2"]
+    args = train.build_parser().parse_args(argv)
+    assert train.parse_overrides(args.hyperparams) == {"gamma": 0.9, "n_epochs": 2}
+    assert train.parse_overrides(["gamma=0.9", "gamma=0.8"]) == {"gamma": 0.8}  # the later one, as before
 
 
 def _evaluation_log(path: Path, **arrays: Any) -> Path:
