@@ -1,7 +1,8 @@
 """Output folders of the agents commands: the run-folder protocol of :mod:`sim.runs`, and atomic writes.
 
 Every command that writes a folder (``agents.train``, ``agents.open_loop``, ``agents.controllers``,
-``agents.evaluate``, ``agents.demo``) claims its ``--out`` with :func:`claim_out` after it has checked all
+``agents.evaluate``, ``agents.demo``; the scripts through :func:`claim_for_script` and, for reports beside
+a sweep, :func:`report_folder`) claims its ``--out`` with :func:`claim_out` after it has checked all
 its arguments and before any work (pre-shearing start states, simulating, training): the claim writes
 ``manifest.json`` first, naming the command and its identity (the parameters that make the folder's results
 what they are; not ``--workers`` and the like). The rules are :mod:`sim.runs`'s, the same for every
@@ -12,7 +13,8 @@ with exit 2 naming the folder. A folder written before manifests existed is adop
 command's own files (its ``legacy`` markers, :func:`legacy_markers`), never another command's.
 
 Files are written atomically (:func:`write_text_atomic`, :func:`save_figure`): a file is either its old
-or its new contents, never a half-written one.
+or its new contents, never a half-written one. :func:`read_evaluation_log` reads a run's validation log
+back, naming the file and what is wrong with a bad one.
 """
 
 from __future__ import annotations
