@@ -3,7 +3,7 @@
     python -m agents.controllers --env dipenv/ThickeningControl-v2 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
         [--tune-episodes N] [--repeats K] [--tune-repeats K] [--env-kwargs JSON] [--workers W]
-        [--scheduler ADDRESS]
+        [--scheduler ADDRESS] [--resume | --overwrite]
 
 Three controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
@@ -41,6 +41,17 @@ plays each state of ``--split`` (``--tune-split``) K times, realisations 0 .. K-
 The identity leaves out the energy weight ``w_E``: a rerun
 with another ``energy_weight`` rescores the stored returns (:func:`agents.open_loop.rescore_stored`),
 picks the tuning point again and plays only a newly picked one on ``--split``.
+
+The folder follows the run-folder protocol (:mod:`agents.folders`): it is claimed, ``manifest.json`` written
+first, after the arguments are checked and before any episode; its identity is the env id and arguments
+(less ``energy_weight``, rescored), the controller, the resolved grid, the tuning split and its number of
+states, the split and its number of states (not ``--repeats``/``--tune-repeats``: more realisations are
+added). A rerun with another grid, say, is refused (exit 2) unless ``--overwrite`` deletes the whole
+previous run; another command's folder (an open-loop baseline's, whose ``points/`` it would share) is
+refused. A folder made before manifests (``controller.json``, ``tuning.csv``, ``tuning/`` or an
+``agents.controllers`` ``command.txt``) is adopted when its ``controller.json`` records the same parameters.
+The splits are those with fixed schedules, ``validation`` and ``test`` (the training split draws a new
+schedule every episode).
 """
 
 from __future__ import annotations
@@ -50,19 +61,29 @@ import hashlib
 import itertools
 import json
 import math
-import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agents.open_loop import _finite, play_missing, rescore_stored, write_json
+from agents.folders import (
+    add_folder_options,
+    claim_out,
+    command_line,
+    legacy_conflict,
+    legacy_markers,
+    write_command,
+    write_text_atomic,
+)
+from agents.open_loop import _finite, play_missing, read_json, rescore_stored, write_json
 from agents.repeats import per_state
 from agents.rollout import make_env
 from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
+    compile_notice,
     directory,
     integer_at_least,
     json_object,
@@ -287,7 +308,8 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
 def parse_grid(kind: str, items: Sequence[str], eta_cap: float) -> dict[str, list[float]]:
     """``["name=v1,v2", ...]`` to ``{name: [v1, v2]}``, each parameter not listed taking its default
     (:data:`DEFAULT_GRIDS`; the PI setpoints :data:`DEFAULT_SETPOINT_FRACTIONS` of ``eta_cap``, rounded
-    to 0.01); ``ValueError`` naming a malformed item or a parameter ``kind`` does not take."""
+    to 0.01); ``ValueError`` naming a malformed item, a parameter ``kind`` does not take, or a parameter or
+    value listed twice (argparse would keep only the last ``name=...``)."""
     defaults = {k: list(v) for k, v in DEFAULT_GRIDS[kind].items()}
     if kind == "pi":
         defaults["setpoint"] = [round(f * eta_cap, 2) for f in DEFAULT_SETPOINT_FRACTIONS]
@@ -300,10 +322,19 @@ def parse_grid(kind: str, items: Sequence[str], eta_cap: float) -> dict[str, lis
             raise ValueError(f"--grid takes name=v1,v2,..., got {item!r}")
         if name not in allowed:
             raise ValueError(f"--grid: {kind} takes {', '.join(sorted(allowed))}, not {name!r}")
+        if name in grid:
+            raise ValueError(
+                f"--grid lists {name} twice ({item!r}); give its values once, separated by commas: "
+                f"{name}=v1,v2"
+            )
         try:
             grid[name] = [float(v) for v in values.split(",")]
         except ValueError:
             raise ValueError(f"--grid {name}: numbers separated by commas, got {values!r}") from None
+        twice = sorted({v for v in grid[name] if grid[name].count(v) > 1})
+        if twice:
+            listed = ", ".join(f"{v:g}" for v in twice)
+            raise ValueError(f"--grid {name} lists {listed} twice (each point once)")
     for name in set(defaults) - set(grid):
         grid[name] = defaults[name]
     return grid
@@ -330,19 +361,31 @@ def mean_return(record: dict[str, Any]) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=PROG, description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog=PROG,
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("--env", default="dipenv/ThickeningControl-v2")
     parser.add_argument("--controller", required=True, choices=CONTROLLERS)
     parser.add_argument(
         "--grid",
         nargs="*",
+        action="extend",
         default=[],
-        help="name=v1,v2 ... (default: DEFAULT_GRIDS; PI setpoints 0.7, 0.85, 1 x the env's cap)",
+        help="name=v1,v2 ... (default: DEFAULT_GRIDS; PI setpoints 0.7, 0.85, 1 x the env's cap); each "
+        "name once",
     )
-    parser.add_argument("--tune-split", default="validation")
+    parser.add_argument(
+        "--tune-split",
+        default="validation",
+        choices=SPLITS,
+        help="split the grid is tuned on (the splits with fixed schedules)",
+    )
     parser.add_argument("--tune-episodes", type=int, default=None, help="default: the whole tuning split")
-    parser.add_argument("--split", default="test")
+    parser.add_argument(
+        "--split", default="test", choices=SPLITS, help="split the tuned controller is played on"
+    )
     parser.add_argument("--episodes", type=int, default=None, help="default: the whole split")
     parser.add_argument(
         "--repeats",
@@ -360,7 +403,58 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
+    add_folder_options(parser)
     return parser
+
+
+SPLITS = ("validation", "test")
+"""The splits a controller is tuned and played on: those with fixed rate schedules
+(``ThickeningControlEnv.fixed_schedule``; the training split draws a new schedule every episode)."""
+
+LEGACY = ("controller.json", "tuning.csv", "tuning")
+"""Files of a controllers folder written before manifests (``points/`` is no marker: an open-loop
+baseline has one too)."""
+
+
+def folder_identity(
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    controller: str,
+    grid: dict[str, list[float]],
+    counts: dict[str, int],
+) -> dict[str, Any]:
+    """The identity in a controllers folder's manifest (the module docstring); ``counts``: the number of
+    states of ``tune_split``/``split`` by those names."""
+    return {
+        "env_id": env_id,
+        "env_kwargs": {k: v for k, v in env_kwargs.items() if k != "energy_weight"},
+        "controller": controller,
+        "grid": {k: grid[k] for k in sorted(grid)},
+        **counts,
+    }
+
+
+def legacy_problem(folder: Path, requested: dict[str, Any]) -> str | None:
+    """Why a pre-manifest controllers ``folder`` cannot be adopted for ``requested``, or None: its
+    ``controller.json`` records other parameters (``tune_split``, ``tune_episodes``, ``split``, the env,
+    controller and grid)."""
+    summary_file = folder / "controller.json"
+    if (folder / "manifest.json").exists() or not summary_file.exists():
+        return None
+    try:
+        summary = read_json(summary_file)
+        recorded = {
+            "env_id": summary["env_id"],
+            "env_kwargs": {k: v for k, v in summary["env_kwargs"].items() if k != "energy_weight"},
+            "controller": summary["controller"],
+            "grid": {k: summary["grid"][k] for k in sorted(summary["grid"])},
+            "tune_split": summary["tune_split"],
+            "tune_episodes": summary["tune_episodes"],
+            "split": summary["split"],
+        }
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+        return f"--out {folder}: {summary_file} cannot be read ({type(error).__name__}: {error})"
+    return legacy_conflict(folder, summary_file, recorded, requested)
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -409,13 +503,34 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     # The split's shear-rate schedules are part of a point's identity: the library key covers the start
     # states only, and the shipped validation schedules changed once (2026-12-03).
     schedules = {(split, n): schedule_digest(unwrapped, split, n) for (split, _), n in counts.items()}
-    unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
-    env.close()
+    tune_n, test_n = counts[args.tune_split, "--tune-split"], counts[args.split, "--split"]
+    identity = folder_identity(
+        args.env,
+        env_kwargs,
+        args.controller,
+        grid,
+        {"tune_split": args.tune_split, "tune_episodes": tune_n, "split": args.split, "episodes": test_n},
+    )
+    if not args.overwrite:
+        problem = legacy_problem(args.out, identity)
+        if problem is not None:
+            usage_error(PROG, problem)
+    claim_out(
+        PROG,
+        args.out,
+        "agents.controllers",
+        identity,
+        argv=command_line("agents.controllers", argv),
+        resume=args.resume,
+        overwrite=args.overwrite,
+        legacy=legacy_markers(args.out, LEGACY, "agents.controllers"),
+    )
+    write_command(args.out, "agents.controllers", argv)
     for folder in ("tuning", "points"):
         (args.out / folder).mkdir(parents=True, exist_ok=True)
-    (args.out / "command.txt").write_text(
-        " ".join([sys.executable, "-m", "agents.controllers", *sys.argv[1:]]) + "\n"
-    )
+    compile_notice(args.scheduler)
+    unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
+    env.close()
 
     def payload(
         params: dict[str, float], split: str, episodes: int, folder: str, repeats: int
@@ -444,7 +559,6 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             },
         }
 
-    tune_n = counts[args.tune_split, "--tune-split"]
     tuning = run_tasks(
         run_point,
         [payload(p, args.tune_split, tune_n, "tuning", args.tune_repeats) for p in points],
@@ -467,11 +581,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 ]
             )
         )
-    (args.out / "tuning.csv").write_text("\n".join(lines) + "\n")
+    write_text_atomic(args.out / "tuning.csv", "\n".join(lines) + "\n")
     best = max(tuning, key=mean_return)
     tuned = run_tasks(
         run_point,
-        [payload(best["params"], args.split, counts[args.split, "--split"], "points", args.repeats)],
+        [payload(best["params"], args.split, test_n, "points", args.repeats)],
         workers=1,
         scheduler=args.scheduler,
     )[0]

@@ -3,7 +3,7 @@
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
         [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
         [--actions mean|sampled|both] [--play-kwargs JSON] [--validation-baseline OPEN_LOOP_DIR]
-        [--workers 2] [--scheduler ADDRESS]
+        [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
@@ -56,7 +56,24 @@ states) and its action variation (:mod:`agents.comparison`).
 ``learning.png``: each run's
 return against training steps, on the validation states with the mean action (its ``EvalCallback`` log)
 and in its training episodes with sampled actions (TensorBoard logs, or the
-``training_returns.csv`` that replaces them in a committed run), with the constant fields' returns.
+``training_returns.csv`` that replaces them in a committed run), with the constant fields' returns on the
+same validation states (``--validation-baseline``); without one, the test-state returns of the table's
+constants, labelled as such (they are not on the curves' states).
+
+Printed: a compact table (policy, ``eta_r`` and return with their intervals, field energy); the full
+tables are in ``table.md`` and ``verdict.md``.
+
+The output folder follows the run-folder protocol (:mod:`agents.folders`): it is claimed, ``manifest.json``
+written first, after every argument and input is checked and before any episode is played; its identity is
+the command's arguments but ``--workers``/``--scheduler`` (RUN_DIRS, ``--baseline``, ``--controllers``,
+``--validation-baseline`` as paths, compared by the files they name; the split, ``--episodes``,
+``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``). A rerun of the same
+arguments continues (per-run results are reused); other arguments, or another command's folder, are refused
+(exit 2) unless ``--overwrite`` deletes the whole previous evaluation. A folder made before manifests (it
+holds ``table.md``, ``verdict.md``, ``results.json`` or an ``agents.evaluate`` ``command.txt``) is adopted.
+``--baseline`` (and ``--validation-baseline``) must be an ``agents.open_loop`` folder (by its manifest, or
+before manifests by its files) whose points are all constant fields; ``--controllers`` folders must be
+``agents.controllers`` folders.
 """
 
 from __future__ import annotations
@@ -65,8 +82,8 @@ import argparse
 import hashlib
 import json
 import math
+import os
 import pickle
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -83,12 +100,25 @@ from agents.comparison import (
     position,
     return_gap,
 )
+from agents.folders import (
+    add_folder_options,
+    claim_out,
+    command_line,
+    compare_paths,
+    legacy_markers,
+    owner,
+    read_evaluation_log,
+    save_figure,
+    write_command,
+    write_text_atomic,
+)
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
 from agents.rollout import make_env, run_episode
 from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
 from agents.usage import (
+    compile_notice,
     directory,
     integer_at_least,
     json_object,
@@ -122,6 +152,12 @@ def read_baseline(folder: Path, option: str = "--baseline") -> tuple[dict[str, A
     path = folder / "pareto.json"
     if not folder.is_dir():
         usage_error(PROG, f"{option} {folder} is not a folder (give an agents.open_loop --out)")
+    made_by = owner(PROG, folder, option)
+    if made_by is not None and made_by != "agents.open_loop":
+        usage_error(PROG, f"{option} {folder} was made by {made_by}, not agents.open_loop (manifest.json)")
+    if made_by is None and (folder / "command.txt").exists():
+        if "command.txt" not in legacy_markers(folder, (), "agents.open_loop"):
+            usage_error(PROG, f"{option} {folder}: its command.txt is not an agents.open_loop command")
     try:
         pareto = read_json(path)
     except (OSError, ValueError) as error:
@@ -136,6 +172,38 @@ def read_baseline(folder: Path, option: str = "--baseline") -> tuple[dict[str, A
     if not points:
         usage_error(PROG, f"{option} {folder}: no points/*.json in it (rerun agents.open_loop)")
     return pareto, points
+
+
+def read_constant_points(files: list[Path], folder: Path, option: str = "--baseline") -> list[dict[str, Any]]:
+    """The constant-field points ``files`` of an open-loop folder, or exit 2 naming ``option`` and the file
+    that cannot be read or is no constant field (a controller's point, dropped there by
+    ``agents.controllers --out`` into the baseline before folders had owners)."""
+    records = []
+    for path in files:
+        try:
+            record = read_json(path)
+            mason = record["mason_number"]
+            episodes = record["episodes"]
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            kind = type(error).__name__
+            usage_error(PROG, f"{option} {folder}: {path} cannot be read as a point ({kind}: {error})")
+        constant = (
+            "controller" not in record
+            and isinstance(mason, int | float)
+            and not isinstance(mason, bool)
+            and not math.isnan(mason)
+            and mason > 0
+            and isinstance(episodes, list)
+        )
+        if not constant:
+            what = f"the {record['controller']} controller's" if "controller" in record else "not a constant"
+            usage_error(
+                PROG,
+                f"{option} {folder}: {path} is {what} point, not a constant field's (an open-loop baseline "
+                "holds constant fields only): remove it, or make the baseline again with agents.open_loop",
+            )
+        records.append(record)
+    return records
 
 
 def validation_lines(folder: Path, pareto: dict[str, Any], reward: Any) -> list[tuple[str, float]]:
@@ -157,7 +225,7 @@ def validation_lines(folder: Path, pareto: dict[str, Any], reward: Any) -> list[
     if differing or other.get("library_key") != pareto.get("library_key"):
         what = ", ".join(differing) if differing else "the start-state library"
         usage_error(PROG, f"{option} {folder} differs from --baseline in {what}")
-    points = [rescore(read_json(p), reward) for p in files]
+    points = [rescore(p, reward) for p in read_constant_points(files, folder, option)]
     summary = summarise_points(points)
     best = max(summary, key=lambda r: r["return"])
     lines = [(f"best constant ({best['label']}), validation states", float(best["return"]))]
@@ -229,8 +297,10 @@ def model_files(run: Path, which: str) -> tuple[Path, Path]:
     log = run / "eval" / "evaluations.npz"
     if not log.exists():
         usage_error(PROG, f"--model best: {run}: no eval/evaluations.npz, so no best-validation checkpoint")
-    with np.load(log) as data:
-        steps = int(data["timesteps"][int(np.argmax(data["results"].mean(axis=1)))])
+    data = checked_evaluation_log(log)
+    if not data["timesteps"].size:
+        usage_error(PROG, f"--model best: {log} holds no evaluation yet")
+    steps = int(data["timesteps"][int(np.argmax(data["results"].mean(axis=1)))])
     model = run / "checkpoints" / f"ckpt_{steps}_steps.zip"
     if not model.exists():
         usage_error(
@@ -238,6 +308,15 @@ def model_files(run: Path, which: str) -> tuple[Path, Path]:
             f"--model best: {run}: the best validation return was at {steps} steps, but {model} is missing",
         )
     return model, run / "checkpoints" / f"ckpt_vecnormalize_{steps}_steps.pkl"
+
+
+def checked_evaluation_log(log: Path) -> dict[str, Any]:
+    """A run's ``eval/evaluations.npz`` (:func:`agents.folders.read_evaluation_log`), or exit 2 naming the
+    file and what is wrong with it (a truncated file was a ``BadZipFile`` traceback)."""
+    try:
+        return read_evaluation_log(log)
+    except ValueError as error:
+        usage_error(PROG, f"RUN_DIRS: {error}")
 
 
 def start_state_library(config: dict[str, Any]) -> str:
@@ -321,6 +400,9 @@ def load_controller(
     and schedules (split, library, indices) and tuned for ``reward``'s energy weight (the tuned point
     depends on it)."""
     summary_file = folder / "controller.json"
+    made_by = owner(PROG, folder, "--controllers")
+    if made_by is not None and made_by != "agents.controllers":
+        usage_error(PROG, f"--controllers: {folder} was made by {made_by}, not agents.controllers")
     if not summary_file.is_file():
         usage_error(PROG, f"--controllers: {folder} holds no controller.json (an agents.controllers output)")
     summary = read_json(summary_file)
@@ -733,7 +815,7 @@ def plot_traces(curves: list[tuple[str, dict[str, Any]]], path: Path) -> None:
         handles=ax_mn.get_lines(), fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.22), frameon=False
     )
     fig.tight_layout()
-    fig.savefig(path, dpi=120, bbox_inches="tight")
+    save_figure(fig, path, dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -795,7 +877,7 @@ def plot_thickening_front(constants: list[dict[str, Any]], others: list[dict[str
     ax.set_ylabel("excess eta_r over the cap, time average")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(0.0, -0.14), frameon=False)  # hides no point
     fig.tight_layout()
-    fig.savefig(out / "thickening_front.png", dpi=120, bbox_inches="tight")
+    save_figure(fig, out / "thickening_front.png", dpi=120, bbox_inches="tight")
     plt.close(fig)
 
 
@@ -844,7 +926,7 @@ def write_training_returns(run: Path, path: Path | None = None) -> Path:
     steps, returns = tensorboard_returns(run)
     path = run / TRAINING_RETURNS_CSV if path is None else path
     lines = ["steps,ep_rew_mean", *(f"{int(s)},{float(r)!r}" for s, r in zip(steps, returns, strict=True))]
-    path.write_text("\n".join(lines) + "\n")
+    write_text_atomic(path, "\n".join(lines) + "\n")
     return path
 
 
@@ -863,8 +945,8 @@ def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, floa
         for j, run in enumerate(runs):
             log = run / "eval" / "evaluations.npz"
             if log.exists():
-                with np.load(log) as data:
-                    steps, returns = data["timesteps"], data["results"].mean(axis=1)
+                data = read_evaluation_log(log)  # main() refuses a bad one before any episode
+                steps, returns = data["timesteps"], data["results"].mean(axis=1)
                 label = f"{name}: validation, mean action" if j == 0 else None
                 ax.plot(steps, returns, "o-", ms=3, lw=1, color=colour, label=label)
             steps, returns = training_returns(run)
@@ -877,8 +959,42 @@ def plot_learning(groups: dict[str, list[Path]], baselines: list[tuple[str, floa
     ax.set_ylabel("episode return")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
+
+
+def learning_lines(
+    test_rows: list[dict[str, Any]], validation: list[tuple[str, float]]
+) -> list[tuple[str, float]]:
+    """The constant fields' returns drawn across ``learning.png``: those of ``--validation-baseline`` on
+    the validation states, where the curves' validation returns are measured (like with like); without
+    one, the table's rows (no field, best constant) on the test states, labelled as not on the curves'
+    states (a test-state line above or below a validation curve says nothing about the policy)."""
+    if validation:
+        return list(validation)
+    return [
+        (f"{r['name']}, test states (not the curves' validation states)", float(r["return"]["mean"]))
+        for r in test_rows
+    ]
+
+
+def compact_table(rows: list[dict[str, Any]]) -> str:
+    """The table printed on the terminal: per row the policy, ``eta_r`` (second half) and the return with
+    their 95% intervals, and the field energy (the full table, with the IQMs, samples, failures and the
+    thickening metrics, is ``table.md``)."""
+
+    def cell(stats: dict[str, float], spec: str) -> str:
+        return format_interval(stats["mean"], stats["ci_low"], stats["ci_high"], spec)
+
+    lines = [
+        "| policy | eta_r, 2nd half [95% CI] | field energy | return [95% CI] |",
+        "|---|---|---|---|",
+    ]
+    lines += [
+        f"| {r['name']} | {cell(r['eta'], '.3f')} | {r['energy']['mean']:.3f} | {cell(r['return'], '.2f')} |"
+        for r in rows
+    ]
+    return "\n".join(lines)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -886,6 +1002,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("runs", nargs="*", type=Path, help="run folders or folders of them")
     parser.add_argument(
@@ -947,7 +1064,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
+    add_folder_options(parser)
     return parser
+
+
+PATH_KEYS = ("runs", "baseline", "controllers", "validation_baseline")
+"""Identity keys that hold paths (compared by the files they name: :func:`agents.folders.compare_paths`)."""
+
+
+def folder_identity(args: argparse.Namespace, split: str, policy_repeats: int, play: dict[str, Any]) -> dict:
+    """The identity in an evaluation folder's manifest (the module docstring)."""
+
+    def spelled(path: Path | None) -> str | None:
+        return None if path is None else os.path.normpath(str(path))
+
+    return {
+        "runs": [spelled(p) for p in args.runs],
+        "baseline": spelled(args.baseline),
+        "controllers": [spelled(p) for p in args.controllers],
+        "validation_baseline": spelled(args.validation_baseline),
+        "split": split,
+        "episodes": args.episodes,
+        "repeats": args.repeats,
+        "policy_repeats": policy_repeats,
+        "model": args.model,
+        "actions": args.actions,
+        "play_kwargs": play,
+    }
+
+
+LEGACY = ("table.md", "verdict.md", "results.json")
+"""Files of an evaluation folder written before manifests (``runs/`` alone is no marker)."""
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -1008,7 +1155,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
     probe.close()
     try:
-        points = [rescore(read_json(p), reward) for p in point_files]
+        points = [rescore(p, reward) for p in read_constant_points(point_files, args.baseline)]
     except (OSError, ValueError, KeyError, TypeError) as error:
         kind = type(error).__name__
         usage_error(PROG, f"--baseline {args.baseline}: a point file cannot be read ({kind}: {error})")
@@ -1077,13 +1224,29 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 }
             )
             owners.append(name)
-    (args.out / "runs").mkdir(parents=True, exist_ok=True)
-    (args.out / "command.txt").write_text(
-        " ".join([sys.executable, "-m", "agents.evaluate", *sys.argv[1:]]) + "\n"
-    )
+    # learning.png reads every run's validation log: a bad one is refused now, not after the episodes
+    for runs in groups.values():
+        for run in runs:
+            if (run / "eval" / "evaluations.npz").exists():
+                checked_evaluation_log(run / "eval" / "evaluations.npz")
     controllers = [
         load_controller(folder, pareto, split, indices, reward, args.repeats) for folder in args.controllers
     ]
+    claim_out(
+        PROG,
+        args.out,
+        "agents.evaluate",
+        folder_identity(args, split, policy_repeats, play_kwargs),
+        argv=command_line("agents.evaluate", argv),
+        resume=args.resume,
+        overwrite=args.overwrite,
+        legacy=legacy_markers(args.out, LEGACY, "agents.evaluate"),
+        compare=compare_paths(PATH_KEYS),
+    )
+    write_command(args.out, "agents.evaluate", argv)
+    (args.out / "runs").mkdir(parents=True, exist_ok=True)
+    if payloads:
+        compile_notice(args.scheduler)
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
     check_same_states({Path(r["run"]): r["library_key"] for r in records}, pareto, configs)
     by_label = {p["label"]: p for p in points}
@@ -1137,7 +1300,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         )
         + "\n\n"
     )
-    (args.out / "table.md").write_text(header + table + "\n")
+    write_text_atomic(args.out / "table.md", header + table + "\n")
     best_row = next(r for r in baseline_rows if r["name"] == best_name)
     controller_rows = baseline_rows[len(baseline_rows) - len(controllers) :]
     members = sorted((r for r in summary if r["pareto"]), key=lambda r: float(r["energy"]))
@@ -1158,7 +1321,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         f"the {best_row['name']}'s on the same states, paired per seed (a controller is one seed) and "
         "paired per state (each state's seeds and realisations averaged).\n\n" + format_verdicts(items)
     )
-    (args.out / "verdict.md").write_text(verdict + "\n")
+    write_text_atomic(args.out / "verdict.md", verdict + "\n")
     write_json(
         args.out / "results.json", {"split": split, "indices": indices, "rows": rows, "verdicts": items}
     )
@@ -1196,9 +1359,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             if e["index"] == first and realisation_of(e) == 0
         ]
     plot_traces(curves, args.out / "traces.png")
-    lines = [(f"{r['name']} (test states)", r["return"]["mean"]) for r in baseline_rows[:2]]
-    plot_learning(groups, lines + validation, args.out / "learning.png")
-    print(header + table + "\n\n" + verdict)
+    plot_learning(groups, learning_lines(baseline_rows[:2], validation), args.out / "learning.png")
+    realisations = f" x {args.repeats} realisations" if args.repeats > 1 else ""
+    thickening = ", thickening metrics" if all("excess_viscosity" in r for r in rows) else ""
+    print(
+        f"{pareto['env_id']}, {len(indices)} {split} start states{realisations}; returns for target "
+        f"{reward.target_viscosity:g}, energy weight {reward.energy_weight:g}\n\n"
+        + compact_table(rows)
+        + f"\n\nThe full table (IQMs, failures{thickening}): {args.out / 'table.md'}; each policy against "
+        f"the constant-field front and the best constant: {args.out / 'verdict.md'}"
+    )
     return {"rows": rows, "verdicts": items}
 
 

@@ -2,7 +2,7 @@
 
     python -m agents.open_loop --env dipenv/FieldMagnitude-v0 --out runs/open_loop
         [--mason off,20,5,2,1,0.5,0.2,0.1,0.05] [--directions y,x,z,xy] [--split test] [--episodes N]
-        [--repeats K] [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
+        [--repeats K] [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
 
 Every point (a constant Mason number, and a direction for the vector env) runs ``--repeats`` episodes
 (realisations 0 .. K-1 of :mod:`dipenv.realisations`; default one, the stored state itself) from each of
@@ -20,6 +20,15 @@ policy for the reward in use, chosen on the same start states, which favours the
 and library; each with the realisations it holds). The stored points keep every interval's ``eta_r``
 and field energy, so a rerun with another reward (``target_viscosity`` or ``energy_weight`` in
 ``--env-kwargs``, or a changed default) rescores them without simulating again.
+
+The folder follows the run-folder protocol (:mod:`agents.folders`): it is claimed, with ``manifest.json``
+written first, after the arguments are checked and before any start state is made; its identity is the
+env id, its arguments less the reward's (``target_viscosity`` and ``energy_weight``: rescored), the
+split and the number of start states. The Mason numbers, directions and ``--repeats`` are not part of it (a
+rerun adds points and realisations to the study). Another command's folder, or one of other parameters, is
+refused (exit 2) unless ``--overwrite`` deletes the whole previous run; a folder made before manifests (it
+holds ``pareto.json``, ``best_constant.json`` or an ``agents.open_loop`` ``command.txt``) is adopted when its
+points were made with the same parameters.
 """
 
 from __future__ import annotations
@@ -27,18 +36,28 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from agents.folders import (
+    add_folder_options,
+    claim_out,
+    command_line,
+    legacy_conflict,
+    legacy_markers,
+    save_figure,
+    write_command,
+    write_text_atomic,
+)
 from agents.repeats import episode_key, missing, per_state, select
 from agents.rollout import constant_policy, make_env, run_episode
 from agents.statistics import interval_estimates
 from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
+    compile_notice,
     directory,
     integer_at_least,
     json_object,
@@ -74,10 +93,7 @@ def _json_default(value: Any) -> Any:
 
 def write_json(path: Path, data: Any) -> None:
     """Write ``data`` as JSON (non-finite floats as strings), atomically."""
-    text = json.dumps(_finite(data), indent=1, default=_json_default)
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    write_text_atomic(path, json.dumps(_finite(data), indent=1, default=_json_default))
 
 
 def _finite(value: Any) -> Any:
@@ -318,7 +334,7 @@ def plot_pareto(rows: list[dict[str, Any]], path: Path, policies: list[dict[str,
     ax.set_ylabel("eta_r, second half of the episode")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -335,6 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("--env", required=True, help="environment id, e.g. dipenv/FieldMagnitude-v0")
     parser.add_argument("--out", required=True, type=directory, help="output folder (created; reruns resume)")
@@ -362,7 +379,42 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="Dask scheduler address, tcp://HOST:PORT (instead of local workers)",
     )
+    add_folder_options(parser)
     return parser
+
+
+LEGACY = ("pareto.json", "best_constant.json")
+"""Files of an open-loop folder written before manifests (``points/`` is no marker: the controllers
+write one too)."""
+
+
+def folder_identity(env_id: str, env_kwargs: dict[str, Any], split: str, episodes: int) -> dict[str, Any]:
+    """The identity in an open-loop folder's manifest (the module docstring)."""
+    kept = {k: v for k, v in env_kwargs.items() if k not in RESCORED_KWARGS and k != "progress"}
+    return {"env_id": env_id, "env_kwargs": kept, "split": split, "episodes": episodes}
+
+
+def legacy_problem(folder: Path, requested: dict[str, Any]) -> str | None:
+    """Why a pre-manifest open-loop ``folder`` cannot be adopted for the identity ``requested``, or None:
+    a stored point was made with another env, env arguments, split or number of start states (a
+    controller's point, which is no constant field, too)."""
+    if (folder / "manifest.json").exists():
+        return None
+    for path in sorted((folder / "points").glob("*.json")):
+        try:
+            record = read_json(path)
+            identity = record["identity"]
+            recorded = folder_identity(
+                identity["env_id"], dict(identity["env_kwargs"]), identity["split"], identity["episodes"]
+            )
+        except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
+            return f"--out {folder}: {path} is not an open-loop point ({type(error).__name__}: {error})"
+        if "controller" in record or not isinstance(record.get("mason_number"), float | int):
+            return f"--out {folder}: {path} is not a constant field's point (an agents.controllers point?)"
+        problem = legacy_conflict(folder, path, recorded, requested)
+        if problem is not None:
+            return problem
+    return None
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
@@ -404,12 +456,26 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                 usage_error(PROG, f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
         if len(set(directions)) < len(directions):
             usage_error(PROG, f"--directions lists a direction twice: {args.directions!r}")
+    identity = folder_identity(args.env, env_kwargs, args.split, episodes)
+    if not args.overwrite:
+        problem = legacy_problem(args.out, identity)
+        if problem is not None:
+            usage_error(PROG, problem)
+    claim_out(
+        PROG,
+        args.out,
+        "agents.open_loop",
+        identity,
+        argv=command_line("agents.open_loop", argv),
+        resume=args.resume,
+        overwrite=args.overwrite,
+        legacy=legacy_markers(args.out, LEGACY, "agents.open_loop"),
+    )
+    write_command(args.out, "agents.open_loop", argv)
+    (args.out / "points").mkdir(parents=True, exist_ok=True)
+    compile_notice(args.scheduler)
     unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
     env.close()
-    (args.out / "points").mkdir(parents=True, exist_ok=True)
-    (args.out / "command.txt").write_text(
-        " ".join([sys.executable, "-m", "agents.open_loop", *sys.argv[1:]]) + "\n"
-    )
     payloads = []
     for m in masons:
         for d in directions if not math.isinf(m) else directions[:1]:
@@ -458,7 +524,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         "pareto",
     ]
     lines = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in rows]
-    (args.out / "pareto.csv").write_text("\n".join(lines) + "\n")
+    write_text_atomic(args.out / "pareto.csv", "\n".join(lines) + "\n")
     plot_pareto(rows, args.out / "pareto.png")
     print(
         f"| point | eta_r (2nd half) | 95% CI | energy <1/Mn> | return | Pareto |  "

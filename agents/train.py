@@ -3,7 +3,7 @@
     python -m agents.train --env dipenv/FieldMagnitude-v0 --algo ppo --seed 0 --out runs/ppo/seed0
     python -m agents.train --env dipenv/FieldMagnitude-v0 --algo ppo --seeds 0-4 --out runs/ppo [--workers 1]
         [--scheduler tcp://host:8786] [--timesteps N] [--n-envs N] [--hyperparams key=value ...]
-        [--env-kwargs JSON] [--no-progress]
+        [--env-kwargs JSON] [--no-progress] [--resume | --overwrite]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (RL Zoo layout, one entry per env id),
 overridden by ``--hyperparams``. Training runs ``n_envs`` environments in a ``SubprocVecEnv`` (a
@@ -12,8 +12,9 @@ evaluates the deterministic policy on every validation start state (``start_stat
 ``eval_freq`` steps and keeps the best model; checkpoints (model, normalisation statistics and, for SAC,
 the replay buffer) every ``checkpoint_freq`` steps; TensorBoard logs; a progress bar.
 
-A run folder holds ``config.yml`` (env id and arguments, algorithm, seed, resolved hyperparameters,
-versions), ``command.txt``, ``model.zip``, ``vecnormalize.pkl``, ``result.json``, ``checkpoints/``,
+A run folder holds ``manifest.json`` (written first: the command and the run's identity, see below),
+``config.yml`` (env id and arguments, algorithm, seed, resolved hyperparameters, versions),
+``command.txt``, ``model.zip``, ``vecnormalize.pkl``, ``result.json``, ``checkpoints/``,
 ``eval/`` (``evaluations.npz``, ``best_model.zip``), ``monitor/`` and ``tb/``. Rerunning the same command
 skips finished runs and resumes interrupted ones from their last checkpoint (not bit-identical to an
 uninterrupted run: the environments restart their episodes); the validation log and the best model carry
@@ -22,6 +23,17 @@ SIGTERM (``pkill -TERM -f agents.train``) stops a run at its next environment st
 that step and exits 143 without a result, so the rerun loses nothing but the episodes under way.
 With ``--seeds`` each seed is a task in ``OUT/seed<k>`` on the local pool (``--workers``) or a Dask
 cluster (``--scheduler``).
+
+Output folders follow the run-folder protocol (:mod:`agents.folders`): ``OUT`` (and with ``--seeds`` each
+``OUT/seed<k>``) is claimed before anything is trained, with the identity env id, env arguments, algorithm,
+the resolved hyperparameters and (a run folder) the seed; ``--seeds`` folders leave the seeds out, so that
+more seeds join a study. A rerun of the same identity continues; a larger ``n_timesteps`` (``--timesteps``)
+continues a run from its last checkpoint, a smaller one is refused (the folder holds a longer run); a
+folder of another command or of other parameters is refused (exit 2) unless ``--overwrite`` deletes the
+whole previous run (with ``--seeds``: every seed in ``OUT``). A run folder made before manifests (it holds
+``config.yml`` or ``model.zip``; a ``--seeds`` folder: ``seed*/config.yml``) is adopted after its
+``config.yml`` is checked. Every hyperparameter is checked, and the model built once, before the folder is
+claimed.
 """
 
 from __future__ import annotations
@@ -37,15 +49,26 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
 
+from agents.folders import (
+    add_folder_options,
+    claim_out,
+    command_line,
+    legacy_markers,
+    normalise,
+    read_evaluation_log,
+    write_text_atomic,
+)
 from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
+    compile_notice,
     directory,
     integer_at_least,
     json_object,
@@ -69,6 +92,7 @@ _CONSTRUCTOR_SET = (
 
 _RANGES: dict[str, tuple[float, float, bool]] = {
     "learning_rate": (0.0, math.inf, False),
+    "ent_coef": (0.0, math.inf, True),
     "n_steps": (1, math.inf, True),
     "batch_size": (2, math.inf, True),
     "n_epochs": (1, math.inf, True),
@@ -88,7 +112,8 @@ _RANGES: dict[str, tuple[float, float, bool]] = {
     "checkpoint_freq": (1, math.inf, True),
 }
 """Valid ranges of the numeric hyperparameters: (low, high, low included); ``high`` is always included.
-``tau`` > 0; ``batch_size`` >= 2 (PPO normalises advantages over a batch)."""
+``tau`` > 0; ``batch_size`` >= 2 (PPO normalises advantages over a batch); ``ent_coef`` >= 0 (a negative
+entropy bonus rewards a collapsed policy; SAC's ``"auto"`` or ``"auto_X"`` with ``X > 0`` learns it)."""
 
 
 class HyperparameterError(ValueError):
@@ -138,6 +163,8 @@ def check_hyperparameters(algo: str, params: dict[str, Any], source: str) -> Non
             problem = None if isinstance(value, str) or (key == "ent_coef" and _number(value)) else "a string"
         elif key.endswith("_kwargs"):
             problem = None if value is None or isinstance(value, dict) else "a mapping"
+        if problem is None and key == "ent_coef" and isinstance(value, str):
+            problem = _auto_ent_coef_problem(algo, value)
         if problem is None and key in _RANGES and _number(value):
             low, high, closed = _RANGES[key]
             if not ((value >= low if closed else value > low) and value <= high and math.isfinite(value)):
@@ -147,6 +174,43 @@ def check_hyperparameters(algo: str, params: dict[str, Any], source: str) -> Non
             raise HyperparameterError(f"{source}: {key} must be {problem}, got {value!r}")
     if algo == "ppo" and int(params.get("n_steps", 2)) * int(params.get("n_envs", 1)) < 2:
         raise HyperparameterError(f"{source}: n_steps * n_envs must be >= 2 (one rollout), got 1")
+
+
+def _auto_ent_coef_problem(algo: str, value: str) -> str | None:
+    """Why the string ``ent_coef`` ``value`` is refused, or None (SAC: ``auto`` or ``auto_X``, ``X > 0``)."""
+    allowed = "a number >= 0" + (", 'auto' or 'auto_X' with X > 0" if algo == "sac" else "")
+    if algo != "sac" or not value.startswith("auto"):
+        return allowed
+    if value == "auto":
+        return None
+    try:
+        initial = float(value.removeprefix("auto_")) if value.startswith("auto_") else math.nan
+    except ValueError:
+        initial = math.nan
+    return None if math.isfinite(initial) and initial > 0 else allowed
+
+
+def model_problem(algo: str, env: Any, params: dict[str, Any]) -> str | None:
+    """Why the algorithm cannot be built with the hyperparameters ``params`` on ``env``'s spaces, or None:
+    the model is built once (cheap: nothing is trained, SAC's replay buffer made small), so that a policy
+    argument SB3 or torch refuse (``policy_kwargs: {net_arch: [-4]}``, an unknown keyword) is named before
+    the run's folder is written, not as a traceback after it."""
+    import warnings
+
+    from stable_baselines3 import PPO, SAC
+
+    algo_cls: Any = PPO if algo == "ppo" else SAC
+    kwargs = {k: v for k, v in copy.deepcopy(params).items() if k not in _TRAINING_KEYS}
+    if algo == "sac":
+        kwargs["buffer_size"] = min(int(kwargs.get("buffer_size", 1_000_000)), 64)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            model = algo_cls(params["policy"], env, seed=0, device="cpu", verbose=0, **kwargs)
+    except Exception as error:  # SB3, torch and gymnasium refuse arguments with many exception types
+        return f"{type(error).__name__}: {error}"
+    del model
+    return None
 
 
 def hyperparameter_file(algo: str) -> Path:
@@ -246,8 +310,24 @@ def missing_normalisation(out: Path, hyperparams: dict[str, Any]) -> str | None:
     return (
         f"--out {out}: resuming from {model} needs the observation normalisation saved with it, {stats}, "
         "which is missing (fresh statistics would feed the policy differently scaled observations); "
-        "restore it, or delete the run's folder to train afresh, or choose another --out"
+        "restore it, or give --overwrite to delete the run and train afresh, or choose another --out"
     )
+
+
+def evaluation_log_problem(out: Path) -> str | None:
+    """Why ``out``'s validation log ``eval/evaluations.npz`` cannot carry over to a resumed run, or None
+    (no log, or a readable one; :func:`agents.folders.read_evaluation_log`)."""
+    log = out / "eval" / "evaluations.npz"
+    if not log.exists() or _latest_checkpoint(out / "checkpoints") is None:
+        return None  # nothing to resume from
+    try:
+        read_evaluation_log(log)
+    except ValueError as error:
+        return (
+            f"--out {out}: {error}; a resumed run continues its validation history from it: restore it, "
+            "delete it (the history before the checkpoint is lost), or give --overwrite to train afresh"
+        )
+    return None
 
 
 def has_progress(out: Path) -> bool:
@@ -307,12 +387,64 @@ def run_conflict(out: Path, identity: dict[str, Any]) -> str | None:
         return kept
 
     if comparable(old) != comparable(identity):
-        differing = [k for k in identity if comparable(old)[k] != comparable(identity)[k]]
+        mine, theirs = comparable(old), comparable(identity)
+        differing = [k for k in identity if mine[k] != theirs[k]]
+        if "hyperparams" in differing:
+            a, b = mine["hyperparams"], theirs["hyperparams"]
+            names = sorted(k for k in set(a) | set(b) if a.get(k, ...) != b.get(k, ...))
+            differing[differing.index("hyperparams")] = f"hyperparams ({', '.join(names)})"
         return (
             f"--out {out} holds a different run (config.yml differs in {', '.join(differing)}); choose "
-            "another --out"
+            "another --out, or give --overwrite to delete that run"
+        )
+    try:
+        longer = int((old.get("hyperparams") or {}).get("n_timesteps", 0))
+    except (TypeError, ValueError):
+        longer = 0
+    wanted = identity.get("hyperparams", {}).get("n_timesteps")
+    if wanted is not None and longer > int(wanted):
+        return (
+            f"--out {out} holds a run of {longer} steps, longer than the {wanted} requested (a rerun "
+            "continues a run, or makes it longer); choose another --out, or give --overwrite"
         )
     return None
+
+
+RUN_LEGACY = ("config.yml", "model.zip")
+"""Files of a run folder that ``agents.train`` wrote before manifests (``result.json`` is no marker:
+``sim run`` writes one too)."""
+
+
+def manifest_identity(
+    env_id: str, env_kwargs: dict[str, Any], algo: str, hp: dict[str, Any], seed: int | None
+) -> dict[str, Any]:
+    """The identity in a training folder's manifest: a run folder's (``seed`` an integer) or a ``--seeds``
+    folder's (``seed`` None: the seeds are not part of it, so that a study takes more of them); the
+    hyperparameters by name."""
+    identity: dict[str, Any] = {
+        "env_id": env_id,
+        "env_kwargs": env_kwargs,
+        "algo": algo,
+        "layout": "one run" if seed is not None else "a run per seed, OUT/seed<k>",
+    }
+    if seed is not None:
+        identity["seed"] = seed
+    clash = sorted(set(identity) & set(hp))
+    if clash:  # not a hyperparameter name (check_hyperparameters refuses unknown keys)
+        raise ValueError(f"hyperparameters named like identity keys: {clash}")
+    return {**identity, **hp}
+
+
+def compare_identities(saved: Mapping[str, Any], requested: Mapping[str, Any]) -> list[str]:
+    """The identity keys that forbid continuing a training folder: every difference, except a larger
+    ``n_timesteps`` (a longer run continues from its last checkpoint)."""
+    a, b = normalise(saved), normalise(requested)
+    keys = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
+    try:
+        longer = "n_timesteps" in keys and int(b["n_timesteps"]) > int(a["n_timesteps"])
+    except (KeyError, TypeError, ValueError):
+        longer = False
+    return [k for k in keys if not (k == "n_timesteps" and longer)]
 
 
 def _json_number(value: float) -> float | None:
@@ -364,8 +496,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         probe.close()
         raise FileNotFoundError(problem)
     out.mkdir(parents=True, exist_ok=True)
-    config_file.write_text(yaml.safe_dump({**identity, "versions": versions()}, sort_keys=False))
-    (out / "command.txt").write_text(payload["command"] + "\n")
+    write_text_atomic(config_file, yaml.safe_dump({**identity, "versions": versions()}, sort_keys=False))
+    write_text_atomic(out / "command.txt", payload["command"] + "\n")
 
     total = int(hp.pop("n_timesteps"))
     n_envs = int(hp.pop("n_envs"))
@@ -482,9 +614,9 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         )
         raise SystemExit(128 + signal.SIGTERM)
     wall = time.perf_counter() - tic
-    model.save(str(out / "model.zip"))
+    _save_atomic(model.save, out / "model.zip")
     if normalize:
-        env.save(str(out / "vecnormalize.pkl"))
+        _save_atomic(env.save, out / "vecnormalize.pkl")
     eval_cb = callbacks.callbacks[1]
     result = {
         "env_id": env_id,
@@ -501,8 +633,19 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     }
     env.close()
     eval_env.close()
-    (out / "result.json").write_text(json.dumps(result, indent=1, allow_nan=False))
+    write_text_atomic(out / "result.json", json.dumps(result, indent=1, allow_nan=False))
     return result
+
+
+def _save_atomic(save: Any, path: Path) -> None:
+    """``save(file)`` (SB3's ``model.save``, ``VecNormalize.save``) into a temporary file beside ``path``
+    (same suffix: SB3 adds ``.zip`` to a name without it), then renamed over ``path``."""
+    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
+    try:
+        save(str(tmp))
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:
@@ -511,23 +654,32 @@ def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:
     as the best model). Evaluations after the checkpoint resumed from are dropped: they are redone."""
     if not log.exists():
         return
-    with np.load(log) as data:
-        keep = data["timesteps"] <= steps_done
-        callback.evaluations_timesteps = [int(t) for t in data["timesteps"][keep]]
-        callback.evaluations_results = [list(map(float, r)) for r in data["results"][keep]]
-        callback.evaluations_length = [list(map(int, n)) for n in data["ep_lengths"][keep]]
+    data = read_evaluation_log(log)  # main() refuses a bad log first (evaluation_log_problem)
+    keep = data["timesteps"] <= steps_done
+    callback.evaluations_timesteps = [int(t) for t in data["timesteps"][keep]]
+    callback.evaluations_results = [list(map(float, r)) for r in data["results"][keep]]
+    callback.evaluations_length = [list(map(int, n)) for n in data["ep_lengths"][keep]]
     if callback.evaluations_results:
         callback.best_mean_reward = max(float(np.mean(r)) for r in callback.evaluations_results)
 
 
 def parse_overrides(items: list[str]) -> dict[str, Any]:
-    """``["gamma=0.9", "policy_kwargs={net_arch: [8]}"]`` -> values parsed as YAML."""
+    """``["gamma=0.9", "policy_kwargs={net_arch: [8]}"]`` -> values parsed as YAML (a later ``key=value``
+    overrides an earlier one: ``--hyperparams $SHORT eval_freq=1000``); exit 2 naming an item that is not
+    ``key=value`` or whose value is not YAML."""
     out: dict[str, Any] = {}
     for item in items:
         if "=" not in item:
             usage_error(PROG, f"--hyperparams takes key=value, got {item!r}")
         key, value = item.split("=", 1)
-        out[key.strip()] = yaml.safe_load(value)
+        key = key.strip()
+        if not key:
+            usage_error(PROG, f"--hyperparams takes key=value, got {item!r} (no key)")
+        try:
+            out[key] = yaml.safe_load(value)
+        except yaml.YAMLError as error:
+            problem = " ".join(str(getattr(error, "problem", None) or error).split())
+            usage_error(PROG, f"--hyperparams {item!r}: the value is not YAML ({problem})")
     return out
 
 
@@ -536,6 +688,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog=PROG,
         description=__doc__,
         formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("--env", required=True, help="environment id, e.g. dipenv/FieldMagnitude-v0")
     parser.add_argument("--algo", default="ppo", choices=ALGOS)
@@ -551,7 +704,14 @@ def build_parser() -> argparse.ArgumentParser:
         "--timesteps", type=integer_at_least(1), default=None, help="override n_timesteps, >= 1"
     )
     parser.add_argument("--n-envs", type=integer_at_least(1), default=None, help="override n_envs, >= 1")
-    parser.add_argument("--hyperparams", nargs="*", default=[], help="key=value overrides (YAML values)")
+    parser.add_argument(
+        "--hyperparams",
+        nargs="*",
+        action="extend",
+        default=[],
+        help="key=value overrides (YAML values; a later key=value overrides an earlier one, and every "
+        "--hyperparams option counts)",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
     parser.add_argument(
         "--workers", type=integer_at_least(1), default=1, help="trainings at once on the local pool, >= 1"
@@ -563,6 +723,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="Dask scheduler address, tcp://HOST:PORT (instead of local workers)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_folder_options(parser)
     return parser
 
 
@@ -583,20 +744,47 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     output_directory(PROG, args.out)
     probe = checked_env(PROG, args.env, env_kwargs, progress=False)  # bad values now, not after set-up
     settings = probe.unwrapped.settings()
+    problem = model_problem(args.algo, probe, hp)
     probe.close()
-    command = " ".join([sys.executable, "-m", "agents.train", *(argv if argv is not None else sys.argv[1:])])
+    if problem is not None:
+        source = "--hyperparams" if overrides else f"hyperparameter file {hyperparameter_file(args.algo)}"
+        usage_error(PROG, f"{source}: {args.algo} cannot be built with these hyperparameters ({problem})")
+    words = command_line("agents.train", argv)
+    command = " ".join(words)
     if args.seeds is not None:
         seeds = args.seeds
         outs = [args.out / f"seed{s}" for s in seeds]
     else:
         seeds = [0 if args.seed is None else args.seed]
         outs = [args.out]
-    for seed, out in zip(seeds, outs, strict=True):
-        problem = missing_normalisation(out, hp) or run_conflict(
-            out, run_identity(args.env, env_kwargs, settings, args.algo, seed, hp)
+    if not args.overwrite:  # the run folders' own files (an adopted pre-manifest run, or a resumed one)
+        for seed, out in zip(seeds, outs, strict=True):
+            problem = (
+                missing_normalisation(out, hp)
+                or run_conflict(out, run_identity(args.env, env_kwargs, settings, args.algo, seed, hp))
+                or evaluation_log_problem(out)
+            )
+            if problem is not None:
+                usage_error(PROG, problem)
+    claim = functools.partial(claim_out, PROG, argv=words, compare=compare_identities)
+    if args.seeds is not None:
+        group = [str(p.relative_to(args.out)) for p in sorted(args.out.glob("seed*/config.yml"))]
+        claim(
+            args.out,
+            "agents.train",
+            manifest_identity(args.env, env_kwargs, args.algo, hp, None),
+            resume=args.resume,
+            overwrite=args.overwrite,
+            legacy=group,
         )
-        if problem is not None:
-            usage_error(PROG, problem)
+        for seed, out in zip(seeds, outs, strict=True):
+            identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seed)
+            claim(out, "agents.train", identity, legacy=legacy_markers(out, RUN_LEGACY))
+    else:
+        identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seeds[0])
+        legacy = legacy_markers(args.out, RUN_LEGACY)
+        claim(args.out, "agents.train", identity, resume=args.resume, overwrite=args.overwrite, legacy=legacy)
+    compile_notice(args.scheduler)
     payloads = [
         {
             "env_id": args.env,

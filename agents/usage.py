@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import sys
@@ -106,11 +107,49 @@ def checked_env(prog: str, env_id: str, env_kwargs: dict[str, Any], **fixed: Any
     if env_id not in dipenv.ENV_IDS:
         usage_error(prog, f"--env must be one of {', '.join(dipenv.ENV_IDS)}, got {env_id!r}")
     try:
-        return make_env(env_id, {**env_kwargs, **fixed})
+        env = make_env(env_id, {**env_kwargs, **fixed})
     except TypeError as error:  # an unknown keyword
         usage_error(prog, f"--env-kwargs {json.dumps(env_kwargs)}: {error}")
     except ValueError as error:
         usage_error(prog, f"--env-kwargs {json.dumps(env_kwargs)}: {error}")
+    problem = reward_problem(env.unwrapped)
+    if problem is not None:
+        env.close()
+        usage_error(prog, f"--env-kwargs {json.dumps(env_kwargs)}: {problem}")
+    return env
+
+
+def reward_problem(unwrapped: Any) -> str | None:
+    """Why the reward of the env ``unwrapped`` is meaningless, or None: its target ``eta_r`` (the
+    thickening-control envs' cap ``eta_cap``) must be a relative viscosity, finite and > 0 (a suspension's
+    ``eta_r`` is >= 1: a cap of -1 would count every interval as thickened). The env itself only asks for
+    a finite value."""
+    reward = getattr(unwrapped, "reward_function", None)
+    target = getattr(reward, "target_viscosity", None)
+    if target is None:
+        return None
+    name = "eta_cap" if hasattr(unwrapped, "explicit_cap") else "target_viscosity"
+    if not (math.isfinite(float(target)) and float(target) > 0.0):
+        return f"{name} must be a relative viscosity, finite and > 0, got {target!r}"
+    return None
+
+
+def compile_notice(scheduler: str | None = None) -> bool:
+    """Print ``sim run``'s note ``compiling kernels (first run only, about a minute)...`` on stderr when the
+    simulator's compiled kernels are not in numba's cache yet (the first episode then waits for them under
+    a progress bar at 0%); returns whether it printed. Nothing for a Dask ``scheduler`` (the workers
+    compile). Needs ``sim`` to export ``COMPILE_NOTICE`` and ``compiled_kernels_cached`` (``sim.run``'s);
+    without them it prints nothing."""
+    import sim
+
+    names = ("COMPILE_NOTICE", "compiled_kernels_cached")
+    if scheduler is not None or not set(names) <= set(getattr(sim, "__all__", ())):
+        return False
+    notice, cached = (getattr(sim, name) for name in names)  # public names (sim.__all__)
+    if cached():
+        return False
+    print(str(notice), file=sys.stderr, flush=True)
+    return True
 
 
 def split_size(prog: str, unwrapped: Any, split: str, episodes: int | None, option: str = "--split") -> int:

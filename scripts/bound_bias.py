@@ -48,7 +48,9 @@ def by_state(path: Path) -> dict[tuple[int, int], dict]:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("reference", type=Path)
     parser.add_argument("other", type=Path)

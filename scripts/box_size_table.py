@@ -87,6 +87,8 @@ def main(folders: list[str]) -> None:
 
 
 if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description="Tabulate the box-size study (Markdown on stdout).")
+    parser = argparse.ArgumentParser(
+        description="Tabulate the box-size study (Markdown on stdout).", allow_abbrev=False
+    )
     parser.add_argument("sweeps", nargs="+", help="folders written by python -m sim sweep")
     main(parser.parse_args().sweeps)

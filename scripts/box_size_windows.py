@@ -49,7 +49,9 @@ def window_means(run: Path, windows: list[tuple[float, float]]) -> list[float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--windows", default="0-6,6-12,12-20,20-40,40-60,60-80,80-100")

@@ -6,11 +6,21 @@ N = 100, strain 20 (averaged 5-20), seed 1, exact near field, field along y. Usa
     python scripts/delta_dependence.py OUT --low-mn   # delta 1e-3 at Mn = 1, 0.1
 
 (delta = 1e-4 at low Mn is in results/validation_dip/exact.)
+
+``OUT`` follows the run-folder protocol (:mod:`agents.folders`): it is claimed for this script (the grids
+are fixed, so every run of it is the same study: both commands above share one ``OUT``) before any
+simulation, and holds one ``sim`` sweep folder per delta; another command's folder, or a non-empty folder
+without a manifest, is refused (exit 2); a folder made before manifests (``delta0.0001/``, ``delta0.001/``)
+is adopted; ``--overwrite`` deletes the whole previous run.
 """
+
+from __future__ import annotations
 
 import argparse
 import math
+from pathlib import Path
 
+from agents.folders import add_folder_options, check_parent, claim_for_script, legacy_markers
 from sim import SimulationConfig
 from sim.sweep import run_sweep
 
@@ -41,9 +51,26 @@ def main(out: str, grid: dict[float, tuple[float, ...]]) -> None:
             )
 
 
-if __name__ == "__main__":
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("out", help="output folder (one sweep folder per delta under it; resumable)")
+def cli(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
+    parser.add_argument("out", type=Path, help="output folder (a sweep folder per delta under it; resumable)")
     parser.add_argument("--low-mn", action="store_true", help="delta 1e-3 at Mn = 1, 0.1 instead")
-    args = parser.parse_args()
-    main(args.out, LOW_MN if args.low_mn else HIGH_MN)
+    add_folder_options(parser, "OUT")
+    args = parser.parse_args(argv)
+    check_parent(parser, args.out, "OUT")
+    claim_for_script(
+        parser,
+        args.out,
+        "delta_dependence.py",
+        {"grids": "fixed in the script"},
+        argv=argv,
+        resume=args.resume,
+        overwrite=args.overwrite,
+        legacy=legacy_markers(args.out, [f"delta{d:g}" for d in {**HIGH_MN, **LOW_MN}]),
+        flag="OUT",
+    )
+    main(str(args.out), LOW_MN if args.low_mn else HIGH_MN)
+
+
+if __name__ == "__main__":
+    cli()

@@ -105,7 +105,7 @@ def plot_rate_bins(tables: dict[str, np.ndarray], edges: np.ndarray, path: Path)
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--strongest", type=float, default=0.1, help="Mn_ref of the strongest field")
     parser.add_argument("--weak", type=float, default=5.0, help="Mn_ref at or above which a field is weak")

@@ -64,7 +64,9 @@ def summarise(path: Path, bins: list[float]) -> dict[str, object] | None:
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("points", nargs="+", type=Path)
     parser.add_argument("--rate-bins", default="0.2,0.5,1,2,3,5", help="edges of the shear-rate bins")

@@ -13,12 +13,17 @@ state, with the 95% bootstrap intervals over the states of :func:`agents.statist
 (the intervals of ``agents.evaluate``'s gaps paired per state), the energy saving of A against B,
 ``1 - sum E_A / sum E_B``, from :func:`agents.comparison.energy_target`, and the number of states where A
 is higher.
+
+Every value must be finite, and the excess viscosity and the field energy >= 0 (an energy saving of a
+negative energy, or a gap to an infinite one, is no number to print): a file that breaks this exits 2 naming
+it, the state and the quantity.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -27,18 +32,34 @@ from agents.comparison import energy_target
 from agents.statistics import interval_estimates
 
 QUANTITIES = ("return", "excess_viscosity", "energy_mean")
+NON_NEGATIVE = ("excess_viscosity", "energy_mean")
+
+
+class BadValue(ValueError):
+    """An episode value that no comparison can use (non-finite, or a negative energy or excess)."""
+
+
+def checked(path: Path, index: int, quantity: str, raw: object) -> float:
+    """``raw`` as a float, or :class:`BadValue` naming the file, the state and the quantity."""
+    value = float(raw)  # type: ignore[arg-type]
+    if not math.isfinite(value) or (quantity in NON_NEGATIVE and value < 0.0):
+        need = "finite and >= 0" if quantity in NON_NEGATIVE else "finite"
+        raise BadValue(f"{path}: state {index}: {quantity} must be {need}, got {raw!r}")
+    return value
 
 
 def per_state(files: list[Path], split: str) -> dict[int, dict[str, float]]:
-    """Mean of each quantity over a row's episodes on each start state (index), failed episodes left out."""
+    """Mean of each quantity over a row's episodes on each start state (index), failed episodes left out;
+    :class:`BadValue` for a value no comparison can use (:func:`checked`)."""
     pooled: dict[int, dict[str, list[float]]] = {}
     for path in files:
         for episode in json.loads(path.read_text())["episodes"]:
             if episode.get("split", split) != split or episode.get("failed"):
                 continue
-            slot = pooled.setdefault(int(episode["index"]), {q: [] for q in QUANTITIES})
+            index = int(episode["index"])
+            slot = pooled.setdefault(index, {q: [] for q in QUANTITIES})
             for q in QUANTITIES:
-                slot[q].append(float(episode[q]))
+                slot[q].append(checked(path, index, q, episode[q]))
     return {index: {q: float(np.mean(v)) for q, v in values.items()} for index, values in pooled.items()}
 
 
@@ -93,7 +114,7 @@ def table(result: dict[str, dict[str, float]], names: tuple[str, str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("--a", type=Path, nargs="+", required=True, help="row A's run or point files")
     parser.add_argument("--b", type=Path, nargs="+", required=True, help="row B's run or point files")
     parser.add_argument("--split", default="test", help="episodes of this split only (default test)")
@@ -106,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
     for option, files in (("--a", args.a), ("--b", args.b)):
         try:
             rows.append(per_state(files, args.split))
+        except BadValue as error:
+            parser.error(f"{option}: {error}")
         except (OSError, ValueError, KeyError, TypeError) as error:  # missing, unreadable or not a run file
             parser.error(f"{option}: cannot read the episodes of {[str(f) for f in files]}: {error!r}")
         if not rows[-1]:

@@ -8,6 +8,12 @@ and ``comparison.md`` (each statement of docs/validation.md#published-results ab
 the numbers
 that test it and whether they agree), and prints both. Points not run yet show as "–"; a statement
 whose points are missing reads "not run".
+
+The reports are written beside the sweep's points (the default ``--out``: files derived from that sweep,
+rewritten every time; the sweep folder stays ``sim sweep``'s). Another ``--out`` follows the run-folder
+protocol (:mod:`agents.folders`): it is claimed for this script with the sweep's path as identity (a report
+of another sweep is refused, exit 2, unless ``--overwrite``); a pre-manifest folder holding the reports is
+adopted.
 """
 
 from __future__ import annotations
@@ -16,8 +22,13 @@ import argparse
 import math
 from pathlib import Path
 
+from agents.folders import add_folder_options, report_folder, write_text_atomic
 from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, SHEAR_CONTRIBUTIONS, STRESS_CONTRIBUTIONS
 from sim.sweep_figures import Group, Series, load_sweep
+
+SCRIPT = "paper_grid_compare.py"
+FILES = ("values.md", "comparison.md")
+"""The reports this script writes (a pre-manifest report folder holds them)."""
 
 Value = tuple[float, float]
 
@@ -198,9 +209,15 @@ def comparison_table(rows: list[tuple[str, str, str]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("sweep", type=Path, help="folder written by python -m sim sweep")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: the sweep folder)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default: the sweep folder, beside its points; another folder is claimed)",
+    )
+    add_folder_options(parser, "--out")
     args = parser.parse_args(argv)
     try:
         loaded = load_sweep(args.sweep)
@@ -208,12 +225,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     series = [s for s in loaded if s.key and "dip" in str(s.key)] or loaded
     grid = Grid(series[0])
-    out = args.out or args.sweep
-    out.mkdir(parents=True, exist_ok=True)
     values = values_table(grid)
     comparison = comparison_table(claims(grid))
-    (out / "values.md").write_text(values)
-    (out / "comparison.md").write_text(comparison)
+    out = report_folder(
+        parser, args.sweep, args.out, SCRIPT, FILES, argv=argv, resume=args.resume, overwrite=args.overwrite
+    )
+    write_text_atomic(out / "values.md", values)
+    write_text_atomic(out / "comparison.md", comparison)
     print(values)
     print(comparison, end="")
     return 0

@@ -1,7 +1,7 @@
 """Does a pulsed field beat a steady one of the same mean energy? Field protocols at a held shear rate.
 
     python scripts/pulse_train.py --out DIR [--env dipenv/ThickeningControl-v2] [--rate 4] [--states 4]
-        [--intervals 16] [--skip 4] [--protocols steady:0.2,pulse:0.1:off,steady:0.1]
+        [--intervals 16] [--skip 4] [--protocols steady:0.2,pulse:0.1:off,steady:0.1] [--resume | --overwrite]
 
 The trained PPO policies of the thickening-control study alternate the strongest field with a weak one
 or none from one interval to the next at high shear rates (``scripts/field_pulsing.py``). This plays
@@ -23,6 +23,13 @@ protocol the means over states and, for each protocol after the first, the paire
 contribution (hydrodynamic: solvent, Stokes drag and lubrication; repulsion; field: ICEP and DEP) and the
 end-of-interval contact number and fabric ``A_yy - 1/3`` (alignment along the field, ``y``). Episodes
 stored before the contributions were recorded lack them and are played again.
+
+``DIR`` follows the run-folder protocol (:mod:`agents.folders`): ``manifest.json`` is written first, with the
+identity ``--env``, ``--rate`` and ``--intervals`` (what an episode is; ``--states`` and ``--protocols`` add
+episodes, ``--skip`` only changes the tables). A rerun of the same identity continues; another rate, say,
+is refused (exit 2; it used to replace the stored episodes) unless ``--overwrite`` deletes the whole
+previous run. A folder made before manifests (``episodes.json``) is adopted when its episodes were played
+with the same identity.
 """
 
 from __future__ import annotations
@@ -38,6 +45,13 @@ import gymnasium as gym
 import numpy as np
 
 import dipenv  # noqa: F401  (registers the ids)
+from agents.folders import (
+    add_folder_options,
+    check_parent,
+    claim_for_script,
+    legacy_markers,
+    write_text_atomic,
+)
 
 
 def parse_protocol(text: str) -> list[float]:
@@ -94,7 +108,7 @@ def play(env: gym.Env, masons: list[float], index: int, rate: float, intervals: 
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--env", default="dipenv/ThickeningControl-v2")
     parser.add_argument("--rate", type=float, default=4.0, help="held shear rate (gammadot_ref), > 0")
@@ -102,6 +116,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--intervals", type=int, default=16, help="intervals per episode, > --skip")
     parser.add_argument("--skip", type=int, default=4, help="leading intervals left out of the means, >= 0")
     parser.add_argument("--protocols", default="steady:0.2,pulse:0.1:off,steady:0.1")
+    add_folder_options(parser, "--out")
     args = parser.parse_args(argv)
     if not (math.isfinite(args.rate) and args.rate > 0):
         parser.error(f"--rate must be a finite number > 0, got {args.rate}")
@@ -113,11 +128,36 @@ def main(argv: list[str] | None = None) -> None:
         protocols = {name: parse_protocol(name) for name in args.protocols.split(",")}
     except ValueError as error:
         parser.error(f"--protocols: {error}")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "command.txt").write_text(" ".join([sys.executable, *sys.argv]) + "\n")
+    check_parent(parser, args.out)
+    if args.env not in dipenv.ENV_IDS or not args.env.startswith("dipenv/ThickeningControl"):
+        parser.error(f"--env must be a thickening-control environment of dipenv, got {args.env!r}")
     store = args.out / "episodes.json"
     setup = {"env": args.env, "rate": args.rate, "intervals": args.intervals}
-    episodes: dict[str, dict] = json.loads(store.read_text()) if store.exists() else {}
+    episodes: dict[str, dict] = {}
+    if store.exists() and not args.overwrite:
+        try:
+            episodes = json.loads(store.read_text())
+            setups = [episode["setup"] for episode in episodes.values()]
+        except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
+            parser.error(f"--out {args.out}: {store} cannot be read ({type(error).__name__}: {error})")
+        other = next((s for s in setups if s != setup), None)
+        if other is not None:
+            parser.error(
+                f"--out {args.out} holds episodes of another setup ({store.name}: {other}; requested "
+                f"{setup}); choose another --out, or give --overwrite to delete that run"
+            )
+    claim_for_script(
+        parser,
+        args.out,
+        "pulse_train.py",
+        setup,
+        argv=argv,
+        resume=args.resume,
+        overwrite=args.overwrite,
+        legacy=legacy_markers(args.out, ("episodes.json",), script="pulse_train.py"),
+    )
+    if args.overwrite:
+        episodes = {}
     env = gym.make(args.env)
     for name, masons in protocols.items():
         for index in range(args.states):
@@ -125,9 +165,7 @@ def main(argv: list[str] | None = None) -> None:
             if key in episodes and episodes[key]["setup"] == setup and "contributions" in episodes[key]:
                 continue
             episodes[key] = {"setup": setup, **play(env, masons, index, args.rate, args.intervals)}
-            tmp = store.with_suffix(".tmp")
-            tmp.write_text(json.dumps(episodes))
-            tmp.replace(store)
+            write_text_atomic(store, json.dumps(episodes))
             print(f"{key}: done", file=sys.stderr, flush=True)
     env.close()
 

@@ -3,8 +3,11 @@ structure along the field and diffusivities against the volume fraction, per mec
 
     python scripts/quiescent_summary.py runs/quiescent [--out results/quiescent/short]
 
-Writes ``table.md`` and ``quiescent.png`` into ``--out`` (default: the sweep folder). Units: time a/U0,
-stresses eps E0^2, diffusivities U0 a (U0 = eps E0^2 a / eta); the field is along y.
+Writes ``table.md`` and ``quiescent.png`` into ``--out`` (default: the sweep folder, beside its points: files
+derived from that sweep, rewritten every time). Another ``--out`` follows the run-folder protocol
+(:mod:`agents.folders`): claimed for this script with the sweep's path as identity (a report of another
+sweep is refused, exit 2, unless ``--overwrite``); a pre-manifest folder holding the reports is adopted.
+Units: time a/U0, stresses eps E0^2, diffusivities U0 a (U0 = eps E0^2 a / eta); the field is along y.
 """
 
 from __future__ import annotations
@@ -19,7 +22,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from agents.folders import add_folder_options, report_folder, save_figure, write_text_atomic  # noqa: E402
 from sim.io import read_json  # noqa: E402
+
+SCRIPT = "quiescent_summary.py"
+FILES = ("table.md", "quiescent.png")
+"""The reports this script writes (a pre-manifest report folder holds them)."""
 
 
 def load(sweep: Path) -> list[dict[str, Any]]:
@@ -92,22 +100,29 @@ def figure(results: list[dict[str, Any]], path: Path) -> None:
     for ax in axes:
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    save_figure(fig, path, dpi=120)
     plt.close(fig)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], allow_abbrev=False)
     parser.add_argument("sweep", type=Path, help="folder written by python -m sim sweep")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default: the sweep folder)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default: the sweep folder, beside its points; another folder is claimed)",
+    )
+    add_folder_options(parser, "--out")
     args = parser.parse_args(argv)
     results = load(args.sweep)
     if not results:
         parser.error(f"no finished quiescent points in {args.sweep}")
-    out = args.out or args.sweep
-    out.mkdir(parents=True, exist_ok=True)
+    out = report_folder(
+        parser, args.sweep, args.out, SCRIPT, FILES, argv=argv, resume=args.resume, overwrite=args.overwrite
+    )
     text = table(results)
-    (out / "table.md").write_text(text)
+    write_text_atomic(out / "table.md", text)
     figure(results, out / "quiescent.png")
     print(text, end="")
     return 0

@@ -58,7 +58,9 @@ def load(points: Path, bins: np.ndarray, cap: float) -> dict[str, dict[str, np.n
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("points", type=Path, help="an agents.open_loop points folder")
     parser.add_argument(

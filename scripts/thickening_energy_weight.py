@@ -60,7 +60,9 @@ def mean_return(point: dict[str, Any], weight: float) -> float:
 
 def main() -> None:
     parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
     )
     parser.add_argument("folders", nargs="+", type=Path, help="folders of point files")
     parser.add_argument("--weights", default="1,0.5,0.3,0.2,0.1", help="energy weights w_E, comma-separated")

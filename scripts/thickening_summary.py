@@ -86,7 +86,7 @@ def summary_table(results: list[dict[str, Any]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument(
         "folders", nargs="+", type=Path, metavar="EVAL_DIR", help="agents.evaluate --out folders"
     )

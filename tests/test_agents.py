@@ -312,9 +312,12 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     printed = capsys.readouterr().out
     assert "no field" in printed and "best constant" in printed and "ppo (ppo)" in printed
     # The baseline was last scored with target 3.0; the table rescores it with the policies' (default) reward.
+    # (Other arguments, another folder: the first one belongs to the evaluation of both policies.)
     default_target = make_env(ENV).unwrapped.reward_function.target_viscosity
     off = json.loads((baseline / "points" / "off.json").read_text())["episodes"][0]["trace"]
     off_return = sum(-abs(eta - default_target) for eta in off["eta_r"])
+    both = out
+    out = tmp_path / "evaluation_ppo"
     no_field = next(
         r
         for r in evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out)])["rows"]
@@ -387,7 +390,12 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
         evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--episodes", "0"])
     assert no_states.value.code == 2 and "--episodes" in capsys.readouterr().err
 
-    # The best-validation checkpoint of each seed (with the normalisation saved alongside it)
+    # The best-validation checkpoint of each seed (with the normalisation saved alongside it), in a folder
+    # of its own (other arguments: the protocol refuses them in another evaluation's folder)
+    with pytest.raises(SystemExit) as other_arguments:
+        evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--model", "best"])
+    assert other_arguments.value.code == 2 and "model='final' there" in capsys.readouterr().err
+    out = tmp_path / "evaluation_best"
     best = evaluate.main([str(ppo), "--baseline", str(baseline), "--out", str(out), "--model", "best"])
     assert any(r["name"] == "ppo (ppo), best validation" for r in best["rows"])
     assert sorted(p.name for p in (out / "runs").glob("*_best.json")) == [
@@ -421,7 +429,7 @@ def test_open_loop_train_evaluate_end_to_end(tmp_path: Path, capsys: pytest.Capt
     assert [r["name"] for r in result["rows"][-2:]] == ["ppo (ppo)", "ppo (ppo), sampled"]
     traces = [json.loads((f / "runs" / "ppo_seed0_stochastic.json").read_text()) for f in sampled]
     assert traces[0]["episodes"][0]["trace"]["action"] == traces[1]["episodes"][0]["trace"]["action"]
-    mean = json.loads((out / "runs" / "ppo_seed0.json").read_text())["episodes"][0]["trace"]["action"]
+    mean = json.loads((both / "runs" / "ppo_seed0.json").read_text())["episodes"][0]["trace"]["action"]
     assert traces[0]["episodes"][0]["trace"]["action"] != mean
 
 

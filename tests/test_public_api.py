@@ -1,9 +1,11 @@
-"""dipenv and agents talk to the simulator only through names exported by sim/__init__.py.
+"""dipenv and agents talk to the simulator only through names exported by sim/__init__.py, and by its
+public application subpackage ``sim.runs`` (the run-folder protocol: :data:`PUBLIC_SUBPACKAGES`).
 
 The checker reads the source (``ast``) of every module of those packages and flags: ``import sim.x``
-(any submodule), ``from sim.x import ...``, ``from sim import name`` for a name not in ``sim.__all__``,
-and ``sim.name`` attribute access (after ``import sim`` or ``import sim as alias``) for such a name.
-Imports through strings (``importlib.import_module("sim.x")``) are out of its scope.
+(any submodule), ``from sim.x import ...`` (but ``from sim.runs import name`` for a name in
+``sim.runs.__all__``), ``from sim import name`` for a name not in ``sim.__all__``, and ``sim.name``
+attribute access (after ``import sim`` or ``import sim as alias``) for such a name. Imports through
+strings (``importlib.import_module("sim.x")``) are out of its scope.
 """
 
 from __future__ import annotations
@@ -14,6 +16,10 @@ from pathlib import Path
 import pytest
 
 import sim
+import sim.runs
+
+PUBLIC_SUBPACKAGES = {"sim.runs": set(sim.runs.__all__)}
+"""Subpackages of ``sim`` whose exported names are public too."""
 
 ROOT = Path(__file__).resolve().parents[1]
 GUARDED_PACKAGES = ("dipenv", "agents")
@@ -41,7 +47,11 @@ def private_sim_uses(source: str, public: set[str] | None = None) -> list[str]:
                 if alias.name.startswith("sim."):
                     found.append(f"line {node.lineno}: import {alias.name}")
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            if node.module.startswith("sim."):
+            if node.module in PUBLIC_SUBPACKAGES:
+                for alias in node.names:
+                    if alias.name not in PUBLIC_SUBPACKAGES[node.module]:
+                        found.append(f"line {node.lineno}: from {node.module} import {alias.name}")
+            elif node.module.startswith("sim."):
                 found.append(f"line {node.lineno}: from {node.module} import ...")
             elif node.module == "sim":
                 for alias in node.names:
@@ -83,6 +93,8 @@ def test_only_public_sim_names_are_used() -> None:
         "from sim.geometry import box\n",
         "from sim import _private\n",
         "from sim import Simulation, stepper\n",
+        "from sim.runs import folder\n",
+        "from sim.runs.folder import differing\n",
         "def f():\n    from sim import NUMBA_CACHE_DIR\n",
         "import sim\nsim.stepper.advance\n",
         "import sim as s\nx = s.config.MAX_STEPS\n",
@@ -103,6 +115,7 @@ def test_checker_flags_private_uses(source: str, tmp_path: Path) -> None:
         "import sim as s\nconfig = s.SimulationConfig(n_particles=10, volume_fraction=0.1)\n",
         "from sim import Simulation, SimulationConfig, run_simulation\n",
         "from sim import *\n",
+        "from sim.runs import MANIFEST, RunFolderError, claim\n",
         "import simulator.stepper\nfrom simple import x\n",  # other packages whose names start with sim
         "from . import sim\n",  # a relative import of a local module named sim
         "import numpy as np\nnp.sim\n",

@@ -1,5 +1,21 @@
 """The application side of ``sim``: run folders and their protocol (the engine is the rest of ``sim``)."""
 
-from sim.runs.folder import MANIFEST, Claim, Manifest, RunFolderError, claim, read_manifest
+from sim.runs.folder import (
+    MANIFEST,
+    Claim,
+    Manifest,
+    RunFolderError,
+    check_writable_parent,
+    claim,
+    read_manifest,
+)
 
-__all__ = ["MANIFEST", "Claim", "Manifest", "RunFolderError", "claim", "read_manifest"]
+__all__ = [
+    "MANIFEST",
+    "Claim",
+    "Manifest",
+    "RunFolderError",
+    "check_writable_parent",
+    "claim",
+    "read_manifest",
+]
