@@ -379,8 +379,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--tune-split",
         default="validation",
-        choices=SPLITS,
-        help="split the grid is tuned on (the splits with fixed schedules)",
+        choices=TUNING_SPLITS,
+        help="split the grid is tuned on (validation or test; never the fresh split, which only the final "
+        "evaluation plays)",
     )
     parser.add_argument("--tune-episodes", type=int, default=None, help="default: the whole tuning split")
     parser.add_argument(
@@ -407,9 +408,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-SPLITS = ("validation", "test")
-"""The splits a controller is tuned and played on: those with fixed rate schedules
+SPLITS = ("validation", "test", "fresh")
+"""The splits a controller is played on: those with fixed rate schedules
 (``ThickeningControlEnv.fixed_schedule``; the training split draws a new schedule every episode)."""
+
+TUNING_SPLITS = ("validation", "test")
+"""The splits a controller may be tuned on: nothing is tuned on the fresh split
+(docs/thickening_control.md)."""
 
 LEGACY = ("controller.json", "tuning.csv", "tuning")
 """Files of a controllers folder written before manifests (``points/`` is no marker: an open-loop

@@ -1024,7 +1024,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--split",
         default=None,
-        choices=("train", "validation", "test"),
+        choices=("train", "validation", "test", "fresh"),
         help="start-state split (default: the baseline's)",
     )
     parser.add_argument(

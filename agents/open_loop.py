@@ -363,7 +363,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help=f"vector envs only: named directions from {', '.join(DIRECTIONS)} (default: all of them)",
     )
-    parser.add_argument("--split", default="test", choices=("train", "validation", "test"))
+    parser.add_argument("--split", default="test", choices=("train", "validation", "test", "fresh"))
     parser.add_argument("--episodes", type=int, default=None, help="start states (default: the whole split)")
     parser.add_argument(
         "--repeats",

@@ -27,13 +27,15 @@ from sim.observables.interparticle_stress import InterparticleStress, interparti
 from sim.observables.microstructure import angular_pair_distribution, contact_number, fabric_tensor
 from sim.observables.pair_distribution import PairDistributionAccumulator, pair_histograms
 from sim.observables.stress import STRESS_CONTRIBUTIONS, BlockAverage, block_average, rheology
-from sim.run import run_simulation
+from sim.run import COMPILE_NOTICE, compiled_kernels_cached, run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
 from sim.state import SimulationState
 from sim.tasks import TaskFailure, parse_seeds, run_tasks
 from sim.variants import PiecewiseLinear, constant, follow, ramp, schedule_from_segments
 
 __all__ = [
+    "COMPILE_NOTICE",
+    "compiled_kernels_cached",
     "PiecewiseLinear",
     "constant",
     "follow",

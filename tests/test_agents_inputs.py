@@ -56,7 +56,8 @@ def test_a_negative_viscosity_cap_is_refused(
     """Was: ``eta_cap = -1`` accepted by the controllers and open_loop (every interval "thickened")."""
     out = tmp_path / "out"
     err = refused(capsys, module.main, [*arguments, "--out", str(out)])
-    assert "must be a relative viscosity, finite and > 0" in err and "--env-kwargs" in err
+    name = "target_viscosity" if "target_viscosity" in arguments[-1] else "eta_cap"
+    assert f"{name} must be" in err and "> 0" in err and "--env-kwargs" in err
     assert not out.exists()
 
 
@@ -140,13 +141,20 @@ def test_a_negative_entropy_coefficient_is_refused(
 
 def test_controllers_split_train_is_refused_by_the_parser(tmp_path: Path, capsys: pytest.CaptureFixture[str]):
     """Was: ``--split train`` gave ``KeyError: 'train'`` (the training split has no fixed schedules)."""
-    for option in ("--split", "--tune-split"):
+    choices = {"--split": "'validation', 'test', 'fresh'", "--tune-split": "'validation', 'test'"}
+    for option, allowed in choices.items():
         err = refused(
             capsys,
             controllers.main,
             ["--env", TINY, "--controller", "feedforward", "--out", str(tmp_path / "o"), option, "train"],
         )
-        assert f"argument {option}: invalid choice: 'train' (choose from 'validation', 'test')" in err
+        assert f"argument {option}: invalid choice: 'train' (choose from {allowed})" in err
+    err = refused(  # nothing is tuned on the fresh split
+        capsys,
+        controllers.main,
+        ["--env", TINY, "--controller", "feedforward", "--out", str(tmp_path / "o"), "--tune-split", "fresh"],
+    )
+    assert "argument --tune-split: invalid choice: 'fresh'" in err
     assert not (tmp_path / "o").exists()
 
 

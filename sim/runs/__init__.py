@@ -7,6 +7,9 @@ from sim.runs.folder import (
     RunFolderError,
     check_writable_parent,
     claim,
+    differing,
+    normalise,
+    preview,
     read_manifest,
 )
 
@@ -17,5 +20,8 @@ __all__ = [
     "RunFolderError",
     "check_writable_parent",
     "claim",
+    "differing",
+    "normalise",
+    "preview",
     "read_manifest",
 ]
