@@ -1,13 +1,15 @@
 """Fit the thickening-control surrogate (issue 43) on simulator episodes, compare the routes, keep the best.
 
-    python scripts/fit_surrogate.py DATA_DIR --out FILE.npz [--routes lambda,ensemble] [--keep auto]
-        [--seed 0] [--holdout-mod 5] [--samples 32] [--members 5] [--hidden 64] [--max-epochs 400]
+    python scripts/fit_surrogate.py DATA_DIR --out FILE.npz [--seeds 0-49] [--routes lambda,ensemble]
+        [--cross-validate] [--keep auto] [--seed 0] [--holdout-mod 5] [--samples 32] [--members 5]
+        [--hidden 64] [--max-epochs 400]
 
 ``DATA_DIR`` is a folder of ``scripts/surrogate_data.py`` (``episodes/ep<seed>.npz`` and its
 ``manifest.json``, whose env id gives the interval, the schedule's pieces, the cap and the weight). The
 episodes are split **by seed**: seed ``s`` is held out when ``s % holdout_mod == holdout_mod - 1`` (every
 fifth seed by default; the behaviours cycle with period 4, so every behaviour is held out), the rest fit.
-The split does not move when more episodes arrive.
+The split does not move when more episodes arrive; ``--seeds`` fixes the episodes used (the data folder of
+a running generator grows), so that the command recorded with the model repeats the fit.
 
 Routes (``docs/surrogate.md``; inference in :mod:`dipenv.surrogate.models`):
 
@@ -25,8 +27,11 @@ Both are scored on the held-out episodes: one-step error of the interval ``eta_r
 given the observed frame before it; persistence as a reference), open-loop rollouts (``--samples`` per
 episode under the recorded fields and schedule, from the recorded first frame): error of the rollouts'
 mean, their spread against that error, the 90% band's coverage, and the episode returns (Spearman rank
-correlation with the data's, and the behaviours' order). ``--keep auto`` keeps the route with the lower
-rollout error of ``eta_r`` (the reward's input), unless its spread is off by more than a factor 1.5 and the
+correlation with the data's, and the behaviours' order). ``--cross-validate`` also fits every route on
+the other folds (held out: ``s % holdout_mod == r`` for each ``r``) and scores it on the pooled held-out
+episodes, every episode once, with a paired bootstrap of the routes' difference; the saved models are
+still those of the first split. ``--keep auto`` keeps the route with the lower rollout error of ``eta_r``
+(the reward's input; cross-validated when run), unless its spread is off by more than a factor 1.5 and the
 other's is not. Written: ``FILE.npz`` (the kept model, with the provenance and metrics in its metadata)
 and ``FILE.metrics.json`` (every route's metrics, the choice and why).
 """
@@ -49,6 +54,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+import sim  # noqa: E402
 from dipenv.surrogate.data import Episode, data_settings, load_episodes  # noqa: E402
 from dipenv.surrogate.features import (  # noqa: E402
     N_DYNAMIC,
@@ -326,44 +332,68 @@ def returns(eta: np.ndarray, energy: np.ndarray, cap: float, weight: float) -> n
     return -(np.maximum(0.0, eta - cap) + weight * energy).sum(axis=-1)
 
 
-def evaluate(
+def predict(
     model: SurrogateModel, held: list[Episode], settings: dict[str, Any], samples: int, seed: int
 ) -> dict[str, Any]:
-    """The held-out metrics of the module docstring."""
+    """Per-episode predictions on ``held`` (one-step, ``samples`` open-loop rollouts, returns)."""
     data = stacked(held)
     dynamic, masons, tables, eta = data["dynamic"], data["masons"], data["tables"], data["eta"]
     cap, weight = settings["eta_cap"], settings["energy_weight"]
-    one = inverse_signed_log(model.one_step(dynamic, masons, tables)[..., 0])
-    persistence = inverse_signed_log(dynamic[:, :-1, 0])
     rng = np.random.default_rng(seed)
     roll = inverse_signed_log(model.rollout(dynamic[:, 0], masons, tables, rng, samples)[..., 0])  # (E,S,T)
+    return {
+        "eta": eta,
+        "one_step": inverse_signed_log(model.one_step(dynamic, masons, tables)[..., 0]),
+        "persistence": inverse_signed_log(dynamic[:, :-1, 0]),
+        "rollouts": roll,
+        "sim_returns": returns(eta, data["energy"], cap, weight),
+        "sur_returns": returns(roll, data["energy"][:, None, :], cap, weight),  # (E, S)
+        "behaviours": [e.behaviour for e in held],
+        "seeds": [e.seed for e in held],
+    }
+
+
+def pooled(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """The predictions of several folds as one set of episodes."""
+    out: dict[str, Any] = {}
+    for key in parts[0]:
+        values = [p[key] for p in parts]
+        out[key] = sum(values, []) if isinstance(values[0], list) else np.concatenate(values)
+    return out
+
+
+def metrics_of(p: dict[str, Any]) -> dict[str, Any]:
+    """The held-out metrics of the module docstring from :func:`predict`'s (or :func:`pooled`'s) output."""
+    eta, roll = p["eta"], p["rollouts"]
     mean = roll.mean(axis=1)
     sd = roll.std(axis=1, ddof=1)
     lo, hi = np.quantile(roll, [0.05, 0.95], axis=1)
     error = mean - eta
-    sim_returns = returns(eta, data["energy"], cap, weight)
-    sur_returns = returns(roll, data["energy"][:, None, :], cap, weight)  # (E, S)
-    behaviours = sorted({e.behaviour for e in held})
-    by_behaviour = {
-        b: {
-            "episodes": int(sum(e.behaviour == b for e in held)),
-            "simulator": float(
-                np.mean([r for r, e in zip(sim_returns, held, strict=True) if e.behaviour == b])
-            ),
-            "surrogate": float(
-                np.mean([r.mean() for r, e in zip(sur_returns, held, strict=True) if e.behaviour == b])
-            ),
+    sim_returns, sur_returns = p["sim_returns"], p["sur_returns"]
+    behaviours = sorted(set(p["behaviours"]))
+    by_behaviour = {}
+    for b in behaviours:
+        mask = np.array([x == b for x in p["behaviours"]])
+        by_behaviour[b] = {
+            "episodes": int(mask.sum()),
+            "simulator": float(sim_returns[mask].mean()),
+            "surrogate": float(sur_returns[mask].mean()),
         }
-        for b in behaviours
-    }
     order_sim = sorted(behaviours, key=lambda b: by_behaviour[b]["simulator"])
     order_sur = sorted(behaviours, key=lambda b: by_behaviour[b]["surrogate"])
-    spearman = stats.spearmanr(sim_returns, sur_returns.mean(axis=1))
     second = slice(eta.shape[1] // 2, None)
+    kendall = math.nan
+    if len(behaviours) > 1:
+        kendall = float(
+            stats.kendalltau(
+                [by_behaviour[b]["simulator"] for b in behaviours],
+                [by_behaviour[b]["surrogate"] for b in behaviours],
+            ).statistic
+        )
     return {
-        "episodes": len(held),
-        "one_step_rmse_eta": float(np.sqrt(np.mean((one - eta) ** 2))),
-        "persistence_rmse_eta": float(np.sqrt(np.mean((persistence - eta) ** 2))),
+        "episodes": int(eta.shape[0]),
+        "one_step_rmse_eta": float(np.sqrt(np.mean((p["one_step"] - eta) ** 2))),
+        "persistence_rmse_eta": float(np.sqrt(np.mean((p["persistence"] - eta) ** 2))),
         "rollout_rmse_eta": float(np.sqrt(np.mean(error**2))),
         "rollout_bias_eta": float(np.mean(error)),
         "rollout_rmse_eta_second_half": float(np.sqrt(np.mean(error[:, second] ** 2))),
@@ -377,33 +407,50 @@ def evaluate(
         "return_surrogate_mean": float(sur_returns.mean()),
         "return_rmse": float(np.sqrt(np.mean((sur_returns.mean(axis=1) - sim_returns) ** 2))),
         "return_sd_surrogate": float(np.mean(sur_returns.std(axis=1, ddof=1))),
-        "return_spearman": float(spearman.statistic),
+        "return_spearman": float(stats.spearmanr(sim_returns, sur_returns.mean(axis=1)).statistic),
         "behaviours": by_behaviour,
         "behaviour_order_simulator": order_sim,
         "behaviour_order_surrogate": order_sur,
-        "behaviour_order_kendall": float(
-            stats.kendalltau(
-                [by_behaviour[b]["simulator"] for b in behaviours],
-                [by_behaviour[b]["surrogate"] for b in behaviours],
-            ).statistic
-        )
-        if len(behaviours) > 1
-        else math.nan,
+        "behaviour_order_kendall": kendall,
     }
 
 
-def choose(metrics: dict[str, dict[str, Any]]) -> tuple[str, str]:
-    """The route to keep and why (``--keep auto``, module docstring)."""
-    routes = sorted(metrics, key=lambda r: metrics[r]["held_out"]["rollout_rmse_eta"])
+def evaluate(
+    model: SurrogateModel, held: list[Episode], settings: dict[str, Any], samples: int, seed: int
+) -> dict[str, Any]:
+    """The held-out metrics of the module docstring."""
+    return metrics_of(predict(model, held, settings, samples, seed))
+
+
+def paired_difference(a: dict[str, Any], b: dict[str, Any], seed: int, draws: int = 4000) -> dict[str, float]:
+    """Rollout RMSE of eta_r, route ``a`` minus route ``b``, on the same episodes, with a 95% percentile
+    bootstrap over episodes."""
+    mse_a = np.mean((a["rollouts"].mean(axis=1) - a["eta"]) ** 2, axis=1)
+    mse_b = np.mean((b["rollouts"].mean(axis=1) - b["eta"]) ** 2, axis=1)
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(len(mse_a), size=(draws, len(mse_a)))
+    diffs = np.sqrt(mse_a[idx].mean(axis=1)) - np.sqrt(mse_b[idx].mean(axis=1))
+    low, high = np.quantile(diffs, [0.025, 0.975])
+    return {
+        "difference": float(np.sqrt(mse_a.mean()) - np.sqrt(mse_b.mean())),
+        "low": float(low),
+        "high": float(high),
+    }
+
+
+def choose(metrics: dict[str, dict[str, Any]], key: str = "held_out") -> tuple[str, str]:
+    """The route to keep and why (``--keep auto``, module docstring), on the metrics under ``key``
+    (``cross_validated`` when the folds were run)."""
+    routes = sorted(metrics, key=lambda r: metrics[r][key]["rollout_rmse_eta"])
     best = routes[0]
     if len(routes) == 1:
         return best, "the only route fitted"
 
     def calibrated(r: str) -> bool:
-        return 1 / 1.5 <= metrics[r]["held_out"]["spread_ratio"] <= 1.5
+        return 1 / 1.5 <= metrics[r][key]["spread_ratio"] <= 1.5
 
     other = routes[1]
-    rmse = {r: metrics[r]["held_out"]["rollout_rmse_eta"] for r in routes}
+    rmse = {r: metrics[r][key]["rollout_rmse_eta"] for r in routes}
     if not calibrated(best) and calibrated(other):
         return other, (
             f"{best} has the lower rollout error of eta_r ({rmse[best]:.3f} against {rmse[other]:.3f}) "
@@ -411,7 +458,7 @@ def choose(metrics: dict[str, dict[str, Any]]) -> tuple[str, str]:
         )
     return (
         best,
-        f"lowest rollout error of eta_r on the held-out episodes ({rmse[best]:.3f} against "
+        f"lowest rollout error of eta_r on the held-out episodes ({key}: {rmse[best]:.3f} against "
         f"{rmse[other]:.3f})",
     )
 
@@ -431,6 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, type=Path, help="the kept model (.npz); metrics beside it")
     parser.add_argument("--routes", default="lambda,ensemble", help="routes to fit (default both)")
     parser.add_argument("--keep", default="auto", help="auto (module docstring) or a route")
+    parser.add_argument("--seeds", default=None, help="episode seeds to use, e.g. 0-49 (default: every file)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fit (starts, inits, batches)")
     parser.add_argument("--holdout-mod", type=int, default=5, help="hold out seeds s %% M == M - 1")
     parser.add_argument("--samples", type=int, default=32, help="rollouts per held-out episode")
@@ -439,6 +487,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--hidden", type=int, default=64)
     parser.add_argument("--max-epochs", type=int, default=400)
     parser.add_argument("--patience", type=int, default=25)
+    parser.add_argument(
+        "--cross-validate",
+        action="store_true",
+        help="also fit on the other folds (seed %% M == r), pool all held-out episodes, choose on them",
+    )
     parser.add_argument("--save-all", action="store_true", help="also write FILE.<route>.npz for each route")
     return parser
 
@@ -455,6 +508,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         parser.error("--holdout-mod must be >= 2")
     settings = data_settings(args.data)
     episodes = load_episodes(args.data, settings["control_interval"], settings["max_piece"])
+    if args.seeds is not None:
+        try:
+            wanted = set(sim.parse_seeds(args.seeds))
+        except ValueError as error:
+            parser.error(f"--seeds: {error}")
+        episodes = [e for e in episodes if e.seed in wanted]
     fit, held = split_episodes(episodes, args.holdout_mod)
     if len(fit) < 2 or not held:
         parser.exit(
@@ -479,24 +538,58 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     }
     models: dict[str, SurrogateModel] = {}
     metrics: dict[str, dict[str, Any]] = {}
-    for route in routes:
-        tic = time.process_time()
-        if route == "lambda":
-            arrays, info = fit_lambda(fit, args.seed, args.starts)
-            model: SurrogateModel = LambdaModel({**common, **arrays}, {"settings": settings})
-        else:
-            arrays, info = fit_ensemble(
-                fit, args.seed, args.members, args.hidden, args.max_epochs, args.patience
-            )
-            model = EnsembleModel({**common, **arrays}, {"settings": settings})
-        info["fit_cpu_seconds"] = round(time.process_time() - tic, 1)
-        held_out = evaluate(model, held, settings, args.samples, args.seed)
-        metrics[route] = {"fit": info, "held_out": held_out}
-        models[route] = model
-        print(json.dumps({"route": route, **held_out}, default=float))
-        sys.stdout.flush()
-    kept, reason = choose(metrics) if args.keep == "auto" else (args.keep, "chosen by --keep")
-    summary = {**provenance, "settings": settings, "routes": metrics, "kept": kept, "reason": reason}
+    predictions: dict[str, list[dict[str, Any]]] = {route: [] for route in routes}
+    mod = args.holdout_mod
+    folds = [mod - 1] + (list(range(mod - 1)) if args.cross_validate else [])
+    for fold in folds:
+        fold_fit = [e for e in episodes if e.seed % mod != fold]
+        fold_held = [e for e in episodes if e.seed % mod == fold]
+        if not fold_held or len(fold_fit) < 2:
+            continue
+        fold_common = common if fold == mod - 1 else common_arrays(episodes, fold_fit)
+        for route in routes:
+            tic = time.process_time()
+            if route == "lambda":
+                arrays, info = fit_lambda(fold_fit, args.seed, args.starts)
+                model: SurrogateModel = LambdaModel({**fold_common, **arrays}, {"settings": settings})
+            else:
+                arrays, info = fit_ensemble(
+                    fold_fit, args.seed, args.members, args.hidden, args.max_epochs, args.patience
+                )
+                model = EnsembleModel({**fold_common, **arrays}, {"settings": settings})
+            info["fit_cpu_seconds"] = round(time.process_time() - tic, 1)
+            prediction = predict(model, fold_held, settings, args.samples, args.seed)
+            predictions[route].append(prediction)
+            if fold == mod - 1:
+                held_out = metrics_of(prediction)
+                metrics[route] = {"fit": info, "held_out": held_out}
+                models[route] = model
+                print(json.dumps({"route": route, **held_out}, default=float))
+            else:
+                print(json.dumps({"route": route, "fold": fold, **metrics_of(prediction)}, default=float))
+            sys.stdout.flush()
+    key = "held_out"
+    comparison: dict[str, Any] = {}
+    if args.cross_validate:
+        key = "cross_validated"
+        for route in routes:
+            metrics[route]["cross_validated"] = metrics_of(pooled(predictions[route]))
+        if len(routes) == 2:
+            a, b = routes
+            comparison = {
+                f"rollout_rmse_eta_{a}_minus_{b}": paired_difference(
+                    pooled(predictions[a]), pooled(predictions[b]), args.seed
+                )
+            }
+    kept, reason = choose(metrics, key) if args.keep == "auto" else (args.keep, "chosen by --keep")
+    summary = {
+        **provenance,
+        "settings": settings,
+        "routes": metrics,
+        "comparison": comparison,
+        "kept": kept,
+        "reason": reason,
+    }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     for route, model in models.items():
         model.metadata = {**provenance, "settings": settings, "route": route, "metrics": metrics[route]}
