@@ -478,6 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--out", required=True, type=Path, help="the kept model (.npz); metrics beside it")
     parser.add_argument("--routes", default="lambda,ensemble", help="routes to fit (default both)")
     parser.add_argument("--keep", default="auto", help="auto (module docstring) or a route")
+    parser.add_argument("--reason", default="chosen by --keep", help="why --keep names a route (recorded)")
     parser.add_argument("--seeds", default=None, help="episode seeds to use, e.g. 0-49 (default: every file)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the fit (starts, inits, batches)")
     parser.add_argument("--holdout-mod", type=int, default=5, help="hold out seeds s %% M == M - 1")
@@ -581,7 +582,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     pooled(predictions[a]), pooled(predictions[b]), args.seed
                 )
             }
-    kept, reason = choose(metrics, key) if args.keep == "auto" else (args.keep, "chosen by --keep")
+    kept, reason = choose(metrics, key) if args.keep == "auto" else (args.keep, args.reason)
     summary = {
         **provenance,
         "settings": settings,
@@ -590,6 +591,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "kept": kept,
         "reason": reason,
     }
+    provenance = {**provenance, "kept": kept, "reason": reason, "comparison": comparison}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     for route, model in models.items():
         model.metadata = {**provenance, "settings": settings, "route": route, "metrics": metrics[route]}
