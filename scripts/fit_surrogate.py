@@ -41,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import shlex
 import subprocess
 import sys
 import time
@@ -528,7 +529,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "episodes": len(episodes),
         "fit_episodes": len(fit),
         "held_out_episodes": [e.seed for e in held],
-        "command": " ".join(
+        "command": shlex.join(
             ["python", "scripts/fit_surrogate.py", *(argv if argv is not None else sys.argv[1:])]
         ),
         "seed": args.seed,
