@@ -136,3 +136,14 @@ for _env_id, (_cls, _kwargs) in _SPECS.items():
             kwargs=dict(_kwargs),
             disable_env_checker=True,
         )
+
+SURROGATE_IDS = ("dipenv/ThickeningControlSurrogate-v0", "dipenv/ThickeningControlSurrogateStressOnly-v0")
+"""The surrogates of ``ThickeningControl-v2`` and ``ThickeningControlStressOnly-v2`` (issue 43): their spaces,
+schedules and reward over a fitted model of the N = 300 simulator's trajectories (docs/surrogate.md). Not in
+:data:`ENV_IDS`, which lists the simulator's ids."""
+
+for _env_id, _cls in zip(
+    SURROGATE_IDS, ("ThickeningControlSurrogateEnv", "ThickeningControlSurrogateStressOnlyEnv"), strict=True
+):
+    if _env_id not in registry:
+        register(id=_env_id, entry_point=f"dipenv.surrogate.env:{_cls}", kwargs=dict(THICKENING_V2_KWARGS))
