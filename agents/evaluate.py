@@ -482,7 +482,10 @@ def load_controller(
     where = (
         "" if summary["env_id"] == pareto["env_id"] else f" on {summary['env_id'].removeprefix('dipenv/')}"
     )
-    name = f"{summary['controller']}{where} ({params}; tuned on {summary['tune_split']})"
+    tuned_on = summary["tune_split"]
+    if summary.get("tune_schedules"):  # agents.controllers --tune-schedules
+        tuned_on = f"{summary['tune_schedules'].get('file')} ({tuned_on} start states)"
+    name = f"{summary['controller']}{where} ({params}; tuned on {tuned_on})"
     return name, rescore(record, reward)
 
 

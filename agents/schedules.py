@@ -23,7 +23,8 @@ and resolved start state, in order, not the names or the file's layout; it joins
 folder made with the file, so a changed file is refused in the same ``--out`` and plays afresh elsewhere.
 ``agents.evaluate --schedules FILE`` checks that its ``--baseline`` and ``--controllers`` were made with
 a file of the same digest. Every command writes the file it played, resolved (start states explicit), to
-``OUT/schedules.json``: a file of the same digest.
+``OUT/schedules.json`` (``agents.controllers --tune-schedules``: ``OUT/tune_schedules.json``): a file of the
+same digest.
 """
 
 from __future__ import annotations
