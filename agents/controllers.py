@@ -2,8 +2,8 @@
 
     python -m agents.controllers --env dipenv/ThickeningControl-v2 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
-        [--tune-episodes N] [--repeats K] [--tune-repeats K] [--env-kwargs JSON] [--workers W]
-        [--scheduler ADDRESS] [--resume | --overwrite]
+        [--tune-episodes N] [--repeats K] [--tune-repeats K] [--schedules FILE] [--tune-schedules FILE]
+        [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS] [--resume | --overwrite]
 
 Three controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
@@ -50,8 +50,14 @@ added). A rerun with another grid, say, is refused (exit 2) unless ``--overwrite
 previous run; another command's folder (an open-loop baseline's, whose ``points/`` it would share) is
 refused. A folder made before manifests (``controller.json``, ``tuning.csv``, ``tuning/`` or an
 ``agents.controllers`` ``command.txt``) is adopted when its ``controller.json`` records the same parameters.
-The splits are those with fixed schedules, ``validation`` and ``test`` (the training split draws a new
-schedule every episode).
+The splits are those with fixed schedules, ``validation``, ``test`` and ``fresh`` (the training split draws
+a new schedule every episode); the tuning split is ``validation`` or ``test``, never ``fresh``.
+
+``--schedules FILE`` plays the tuned controller on the schedules of a file of your own instead of the
+split's (:mod:`agents.schedules`; start states of ``--split``, ``--episodes N`` the first N entries); the
+tuning stays on ``--tune-split``'s own schedules unless ``--tune-schedules FILE`` names a file for it too
+(start states of ``--tune-split``). Each file's digest joins the identity, and ``controller.json`` records
+it (``agents.evaluate --schedules`` checks it).
 """
 
 from __future__ import annotations
@@ -80,6 +86,13 @@ from agents.folders import (
 from agents.open_loop import _finite, play_missing, read_json, rescore_stored, write_json
 from agents.repeats import per_state
 from agents.rollout import make_env
+from agents.schedules import (
+    ScheduleSet,
+    episode_count,
+    episodes_payload,
+    load_schedules,
+    prepare_states,
+)
 from agents.tasks import run_tasks
 from agents.usage import (
     checked_env,
@@ -400,6 +413,22 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="realisations per --tune-split state for every grid point, >= 1",
     )
+    parser.add_argument(
+        "--schedules",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="play the tuned controller on this JSON list of shear-rate schedules (start states of --split) "
+        "instead of the split's own (agents.schedules; docs/agents.md#your-own-schedules)",
+    )
+    parser.add_argument(
+        "--tune-schedules",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="tune on this schedules file (start states of --tune-split) instead of the tuning split's own "
+        "schedules (default: the split's own)",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
@@ -426,10 +455,11 @@ def folder_identity(
     env_kwargs: dict[str, Any],
     controller: str,
     grid: dict[str, list[float]],
-    counts: dict[str, int],
+    counts: dict[str, Any],
 ) -> dict[str, Any]:
     """The identity in a controllers folder's manifest (the module docstring); ``counts``: the number of
-    states of ``tune_split``/``split`` by those names."""
+    states of ``tune_split``/``split`` by those names, and the digests of the schedules files
+    (``schedules``, ``tune_schedules``) where given."""
     return {
         "env_id": env_id,
         "env_kwargs": {k: v for k, v in env_kwargs.items() if k != "energy_weight"},
@@ -485,12 +515,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         usage_error(PROG, f"--controller {args.controller} on --env {args.env}: {error}")
     sizes = unwrapped.split_sizes
     counts = {}
-    for option, split, count in (
-        ("--tune-split", args.tune_split, args.tune_episodes),
-        ("--split", args.split, args.episodes),
+    files: dict[str, ScheduleSet | None] = {"--tune-split": None, "--split": None}
+    for option, split, count, path, flag in (
+        ("--tune-split", args.tune_split, args.tune_episodes, args.tune_schedules, "--tune-schedules"),
+        ("--split", args.split, args.episodes, args.schedules, "--schedules"),
     ):
         if split not in sizes:
             usage_error(PROG, f"{option} must be one of {', '.join(sizes)}, got {split!r}")
+        if path is not None:
+            played = load_schedules(PROG, path, unwrapped, args.env, split, flag)
+            files[option] = played
+            counts[split, option] = episode_count(PROG, played, count)
+            continue
         n = sizes[split] if count is None else count
         if not 1 <= n <= sizes[split]:
             usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
@@ -506,15 +542,27 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     settings["eta_cap"] = reward_settings["eta_cap"]
     settings["failure_penalty"] = reward_settings["failure_penalty"]
     # The split's shear-rate schedules are part of a point's identity: the library key covers the start
-    # states only, and the shipped validation schedules changed once (2026-12-03).
-    schedules = {(split, n): schedule_digest(unwrapped, split, n) for (split, _), n in counts.items()}
+    # states only, and the shipped validation schedules changed once (2026-12-03). A schedules file's
+    # digest covers its schedules and start states.
+    digests = {}
+    for (split, option), n in counts.items():
+        given = files[option]
+        digests[option] = schedule_digest(unwrapped, split, n) if given is None else given.digest
     tune_n, test_n = counts[args.tune_split, "--tune-split"], counts[args.split, "--split"]
+    tune_file, test_file = files["--tune-split"], files["--split"]
     identity = folder_identity(
         args.env,
         env_kwargs,
         args.controller,
         grid,
-        {"tune_split": args.tune_split, "tune_episodes": tune_n, "split": args.split, "episodes": test_n},
+        {
+            "tune_split": args.tune_split,
+            "tune_episodes": tune_n,
+            "split": args.split,
+            "episodes": test_n,
+            **({"tune_schedules": tune_file.digest} if tune_file is not None else {}),
+            **({"schedules": test_file.digest} if test_file is not None else {}),
+        },
     )
     if not args.overwrite:
         problem = legacy_problem(args.out, identity)
@@ -534,14 +582,25 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for folder in ("tuning", "points"):
         (args.out / folder).mkdir(parents=True, exist_ok=True)
     compile_notice(args.scheduler)
-    unwrapped.library().ensure(sorted({args.tune_split, args.split}), progress=True)
+    fixed = {split for (split, option) in counts if files[option] is None}
+    if fixed:
+        unwrapped.library().ensure(sorted(fixed), progress=True)
+    for (_, option), n in counts.items():
+        given = files[option]
+        if given is not None:
+            name = "tune_schedules.json" if option == "--tune-split" else "schedules.json"
+            write_json(args.out / name, given.resolved())
+            prepare_states(unwrapped, given, n)
     env.close()
 
     def payload(
-        params: dict[str, float], split: str, episodes: int, folder: str, repeats: int
+        params: dict[str, float], split: str, episodes: int, folder: str, repeats: int, option: str
     ) -> dict[str, Any]:
         label = point_label(args.controller, params)
+        played = files[option]
+        scheduled = episodes_payload(played)
         return {
+            **({"schedules": scheduled[:episodes]} if scheduled is not None else {}),
             "repeats": repeats,
             "env_id": args.env,
             "env_kwargs": {**env_kwargs, "progress": False},
@@ -560,13 +619,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 "params": params,
                 "split": split,
                 "episodes": episodes,
-                "schedules": schedules[split, episodes],
+                "schedules": digests[option],
             },
         }
 
     tuning = run_tasks(
         run_point,
-        [payload(p, args.tune_split, tune_n, "tuning", args.tune_repeats) for p in points],
+        [payload(p, args.tune_split, tune_n, "tuning", args.tune_repeats, "--tune-split") for p in points],
         workers=args.workers,
         scheduler=args.scheduler,
     )
@@ -590,7 +649,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     best = max(tuning, key=mean_return)
     tuned = run_tasks(
         run_point,
-        [payload(best["params"], args.split, test_n, "points", args.repeats)],
+        [payload(best["params"], args.split, test_n, "points", args.repeats, "--split")],
         workers=1,
         scheduler=args.scheduler,
     )[0]
@@ -609,12 +668,16 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "test_return": mean_return(tuned),
         "library_key": key,
         "energy_weight": reward.energy_weight,
+        **({"tune_schedules": tune_file.summary()} if tune_file is not None else {}),
+        **({"schedules": test_file.summary()} if test_file is not None else {}),
     }
     write_json(args.out / "controller.json", summary)
     print("\n".join(lines))
+    tuned_on = f"{tune_n} {args.tune_split} schedules" if tune_file is None else tune_file.label()
+    played_on = args.split if test_file is None else f"{test_file.label()} ({args.split} start states)"
     print(
-        f"tuned on {tune_n} {args.tune_split} schedules: {tuned['label']} (return {mean_return(best):.2f}); "
-        f"on {args.split}: {mean_return(tuned):.2f}"
+        f"tuned on {tuned_on}: {tuned['label']} (return {mean_return(best):.2f}); "
+        f"on {played_on}: {mean_return(tuned):.2f}"
     )
     return summary
 

@@ -3,7 +3,7 @@
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
         [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
         [--actions mean|sampled|both] [--play-kwargs JSON] [--validation-baseline OPEN_LOOP_DIR]
-        [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
+        [--schedules FILE] [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
@@ -12,6 +12,12 @@ averages a state's realisations first (:mod:`agents.repeats`): the intervals sta
 ``--policy-repeats K`` sets the trained runs' realisations apart (default: ``--repeats``): five training
 seeds already play each state five times, each from its own trajectory, so one realisation per seed
 resamples the chaotic noise as well as four, at a quarter of the cost.
+
+``--schedules FILE`` (the thickening-control envs) plays the policies on the schedules of a file of your
+own (:mod:`agents.schedules`: episode ``j`` follows schedule ``j`` from its start state of the baseline's
+split); the ``--baseline`` and every ``--controllers`` folder must have been made with a file of the same
+digest (``agents.open_loop --schedules FILE``, ``agents.controllers --schedules FILE``), else exit 2
+naming both; a baseline made with a file needs ``--schedules``. The rows are then paired per entry.
 
 ``--controllers`` adds each tuned controller of an ``agents.controllers`` folder as a row beside the
 constant fields (played on the same split, start states and schedules, else exit 2). Runs and controllers
@@ -67,7 +73,8 @@ The output folder follows the run-folder protocol (:mod:`agents.folders`): it is
 written first, after every argument and input is checked and before any episode is played; its identity is
 the command's arguments but ``--workers``/``--scheduler`` (RUN_DIRS, ``--baseline``, ``--controllers``,
 ``--validation-baseline`` as paths, compared by the files they name; the split, ``--episodes``,
-``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``). A rerun of the same
+``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``, and the digest of
+``--schedules``). A rerun of the same
 arguments continues (per-run results are reused); other arguments, or another command's folder, are refused
 (exit 2) unless ``--overwrite`` deletes the whole previous evaluation. A folder made before manifests (it
 holds ``table.md``, ``verdict.md``, ``results.json`` or an ``agents.evaluate`` ``command.txt``) is adopted.
@@ -115,6 +122,14 @@ from agents.folders import (
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
 from agents.rollout import make_env, run_episode
+from agents.schedules import (
+    ScheduleSet,
+    episodes_payload,
+    load_schedules,
+    mismatch,
+    mismatch_message,
+    play,
+)
 from agents.statistics import interval_estimates, probability_of_improvement
 from agents.tasks import run_tasks
 from agents.usage import (
@@ -215,6 +230,12 @@ def validation_lines(folder: Path, pareto: dict[str, Any], reward: Any) -> list[
     other, files = read_baseline(folder, option)
     if other["split"] != "validation":
         usage_error(PROG, f"{option} {folder} was played on the {other['split']} states, not validation")
+    if other.get("schedules"):
+        usage_error(
+            PROG,
+            f"{option} {folder} was played on the schedules of {other['schedules'].get('file')}, not on the "
+            "validation split's own, where the runs' validation returns are measured",
+        )
     same = (other["env_id"], other["env_kwargs"]) == (pareto["env_id"], pareto["env_kwargs"])
     differing = (
         []
@@ -393,12 +414,18 @@ def check_same_states(
 
 
 def load_controller(
-    folder: Path, pareto: dict[str, Any], split: str, indices: list[int], reward: Any, repeats: int = 1
+    folder: Path,
+    pareto: dict[str, Any],
+    split: str,
+    indices: list[int],
+    reward: Any,
+    repeats: int = 1,
+    schedules: ScheduleSet | None = None,
 ) -> tuple[str, dict[str, Any]]:
     """The tuned controller of an ``agents.controllers`` folder as ``(row name, record)``, its returns
     rescored with ``reward``; exit 2 unless it was played in the baseline's env on the same start states
-    and schedules (split, library, indices) and tuned for ``reward``'s energy weight (the tuned point
-    depends on it)."""
+    and schedules (split, library, indices; ``schedules``: a schedules file's digest, None for the split's
+    own) and tuned for ``reward``'s energy weight (the tuned point depends on it)."""
     summary_file = folder / "controller.json"
     made_by = owner(PROG, folder, "--controllers")
     if made_by is not None and made_by != "agents.controllers":
@@ -409,6 +436,13 @@ def load_controller(
     record_file = folder / "points" / f"{summary['label']}.json"
     if not record_file.is_file():
         usage_error(PROG, f"--controllers: {record_file} is missing (rerun the agents.controllers command)")
+    if mismatch(schedules, summary.get("schedules")):
+        usage_error(
+            PROG,
+            mismatch_message(
+                "--controllers", folder, schedules, summary.get("schedules"), "agents.controllers"
+            ),
+        )
     record = read_json(record_file)
     absent = missing(record["episodes"], indices, repeats)
     problems = []
@@ -448,7 +482,10 @@ def load_controller(
     where = (
         "" if summary["env_id"] == pareto["env_id"] else f" on {summary['env_id'].removeprefix('dipenv/')}"
     )
-    name = f"{summary['controller']}{where} ({params}; tuned on {summary['tune_split']})"
+    tuned_on = summary["tune_split"]
+    if summary.get("tune_schedules"):  # agents.controllers --tune-schedules
+        tuned_on = f"{summary['tune_schedules'].get('file')} ({tuned_on} start states)"
+    name = f"{summary['controller']}{where} ({params}; tuned on {tuned_on})"
     return name, rescore(record, reward)
 
 
@@ -492,13 +529,20 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
         if old.get("identity") == payload["identity"]:
             done = {(int(e["index"]), int(e["realisation"])): e for e in old["episodes"]}
     episodes = []
+    scheduled = payload.get("schedules")  # a schedules file's episodes (agents.schedules), or None
     for index in payload["indices"]:
         for realisation in range(payload.get("repeats", 1)):
             if (index, realisation) not in done:
-                # the stochastic policy's samples: reproducible per start state and realisation
+                # the stochastic policy's samples: reproducible per episode (start state, or the entry of
+                # a schedules file) and realisation
                 torch.manual_seed(index + 100_003 * realisation)
-                trace = run_episode(env, policy, payload["split"], index, realisation=realisation)
-                done[(index, realisation)] = {**trace.summary(), "trace": trace.to_dict()}
+                if scheduled is None:
+                    trace = run_episode(env, policy, payload["split"], index, realisation=realisation)
+                    done[(index, realisation)] = {**trace.summary(), "trace": trace.to_dict()}
+                else:
+                    done[(index, realisation)] = play(
+                        env, policy, payload["split"], scheduled[index], realisation
+                    )
                 write_json(partial, {"identity": payload["identity"], "episodes": list(done.values())})
             episodes.append(done[(index, realisation)])
     key = env.unwrapped.library().key  # type: ignore[attr-defined]
@@ -1062,6 +1106,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="JSON object of env arguments that replace the trained runs' own when they are played, e.g. "
         "'{\"simulation_overrides\": {}}' for policies trained with a coarser step (default: none)",
     )
+    parser.add_argument(
+        "--schedules",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="play on this JSON list of shear-rate schedules (agents.schedules) instead of the split's own; "
+        "--baseline and --controllers must have been made with the same file (checked by digest)",
+    )
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
     add_folder_options(parser)
@@ -1072,7 +1124,13 @@ PATH_KEYS = ("runs", "baseline", "controllers", "validation_baseline")
 """Identity keys that hold paths (compared by the files they name: :func:`agents.folders.compare_paths`)."""
 
 
-def folder_identity(args: argparse.Namespace, split: str, policy_repeats: int, play: dict[str, Any]) -> dict:
+def folder_identity(
+    args: argparse.Namespace,
+    split: str,
+    policy_repeats: int,
+    play: dict[str, Any],
+    schedules: ScheduleSet | None = None,
+) -> dict:
     """The identity in an evaluation folder's manifest (the module docstring)."""
 
     def spelled(path: Path | None) -> str | None:
@@ -1090,6 +1148,7 @@ def folder_identity(args: argparse.Namespace, split: str, policy_repeats: int, p
         "model": args.model,
         "actions": args.actions,
         "play_kwargs": play,
+        **({"schedules": schedules.digest} if schedules is not None else {}),
     }
 
 
@@ -1153,7 +1212,17 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     config = next(iter(configs.values())) if configs else pareto
     probe = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
     reward = probe.unwrapped.reward_function  # type: ignore[attr-defined]
+    schedules: ScheduleSet | None = None
+    if args.schedules is not None:
+        schedules = load_schedules(PROG, args.schedules, probe.unwrapped, str(config["env_id"]), split)
     probe.close()
+    if mismatch(schedules, pareto.get("schedules")):
+        usage_error(
+            PROG,
+            mismatch_message(
+                "--baseline", args.baseline, schedules, pareto.get("schedules"), "agents.open_loop"
+            ),
+        )
     try:
         points = [rescore(p, reward) for p in read_constant_points(point_files, args.baseline)]
     except (OSError, ValueError, KeyError, TypeError) as error:
@@ -1182,6 +1251,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         for sampled in sampling
     }
     policy_repeats = args.repeats if args.policy_repeats is None else args.policy_repeats
+    scheduled = episodes_payload(schedules)
     payloads, owners = [], []
     for name, (runs, sampled) in policies.items():
         for run in runs:
@@ -1209,6 +1279,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "repeats": policy_repeats,
                     "env_kwargs": configs[run]["env_kwargs"],
                     "path": str(args.out / "runs" / f"{label}.json"),
+                    **({"schedules": scheduled} if scheduled is not None else {}),
                     "identity": {
                         "run": str(run.resolve()),
                         "split": split,
@@ -1220,6 +1291,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         **({"stochastic": True} if sampled else {}),
                         **({"repeats": policy_repeats} if policy_repeats > 1 else {}),
                         **({"play_kwargs": play_kwargs} if play_kwargs else {}),
+                        **({"schedules": schedules.digest} if schedules is not None else {}),
                     },
                 }
             )
@@ -1230,13 +1302,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             if (run / "eval" / "evaluations.npz").exists():
                 checked_evaluation_log(run / "eval" / "evaluations.npz")
     controllers = [
-        load_controller(folder, pareto, split, indices, reward, args.repeats) for folder in args.controllers
+        load_controller(folder, pareto, split, indices, reward, args.repeats, schedules)
+        for folder in args.controllers
     ]
     claim_out(
         PROG,
         args.out,
         "agents.evaluate",
-        folder_identity(args, split, policy_repeats, play_kwargs),
+        folder_identity(args, split, policy_repeats, play_kwargs, schedules),
         argv=command_line("agents.evaluate", argv),
         resume=args.resume,
         overwrite=args.overwrite,
@@ -1245,6 +1318,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     write_command(args.out, "agents.evaluate", argv)
     (args.out / "runs").mkdir(parents=True, exist_ok=True)
+    if schedules is not None:
+        write_json(args.out / "schedules.json", schedules.resolved())
     if payloads:
         compile_notice(args.scheduler)
     records = run_tasks(evaluate_run, payloads, workers=args.workers, scheduler=args.scheduler)
@@ -1284,8 +1359,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         if any(env_id != pareto["env_id"] for env_id in played_ids)
         else ""
     )
+    played_on = (
+        f"{len(indices)} {split} start states"
+        if schedules is None
+        else f"{len(indices)} episodes of the {schedules.label()}, from start states of the {split} split "
+        "(each episode is a 'state' below: the rows are paired per entry of the file)"
+    )
     header = (
-        f"Environment {pareto['env_id']}{envs}, {len(indices)} {split} start states{realisations}; eta_r and "
+        f"Environment {pareto['env_id']}{envs}, {played_on}{realisations}; eta_r and "
         "energy are time averages over the second half of each episode (energy in eta gammadot per unit "
         "strain); intervals "
         "are 95% stratified-bootstrap intervals (rliable) over training seeds and states (policies) or over "
@@ -1323,7 +1404,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     )
     write_text_atomic(args.out / "verdict.md", verdict + "\n")
     write_json(
-        args.out / "results.json", {"split": split, "indices": indices, "rows": rows, "verdicts": items}
+        args.out / "results.json",
+        {
+            "split": split,
+            "indices": indices,
+            **({"schedules": schedules.summary()} if schedules is not None else {}),
+            "rows": rows,
+            "verdicts": items,
+        },
     )
     markers = [
         {
@@ -1363,7 +1451,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     realisations = f" x {args.repeats} realisations" if args.repeats > 1 else ""
     thickening = ", thickening metrics" if all("excess_viscosity" in r for r in rows) else ""
     print(
-        f"{pareto['env_id']}, {len(indices)} {split} start states{realisations}; returns for target "
+        f"{pareto['env_id']}, {played_on}{realisations}; returns for target "
         f"{reward.target_viscosity:g}, energy weight {reward.energy_weight:g}\n\n"
         + compact_table(rows)
         + f"\n\nThe full table (IQMs, failures{thickening}): {args.out / 'table.md'}; each policy against "

@@ -2,7 +2,8 @@
 
     python -m agents.open_loop --env dipenv/FieldMagnitude-v0 --out runs/open_loop
         [--mason off,20,5,2,1,0.5,0.2,0.1,0.05] [--directions y,x,z,xy] [--split test] [--episodes N]
-        [--repeats K] [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
+        [--repeats K] [--schedules FILE] [--env-kwargs JSON] [--workers 2] [--scheduler ADDRESS]
+        [--resume | --overwrite]
 
 Every point (a constant Mason number, and a direction for the vector env) runs ``--repeats`` episodes
 (realisations 0 .. K-1 of :mod:`dipenv.realisations`; default one, the stored state itself) from each of
@@ -11,6 +12,9 @@ episodes' metrics and traces, written after every episode); a rerun reuses the e
 for the same env, arguments and start-state library and plays only the missing ones, so the command is
 resumable and a rerun with a larger ``--repeats`` adds realisations to the stored ones. Statistics average
 a state's realisations first (:mod:`agents.repeats`); intervals are over states.
+``--schedules FILE`` (the thickening-control envs) plays the file's schedules instead of the split's own:
+episode ``j`` follows schedule ``j`` from its start state of ``--split`` (:mod:`agents.schedules`);
+``--episodes N`` then takes the first N entries, and the statistics run over the entries.
 Then it writes ``pareto.csv`` / ``pareto.json``
 (per point: mean ``eta_r`` over the second half of the episodes with its 95% interval over start
 states, field energy ``<1/Mn>``, return, and whether the point is on the Pareto front of low ``eta_r``
@@ -24,7 +28,8 @@ and field energy, so a rerun with another reward (``target_viscosity`` or ``ener
 The folder follows the run-folder protocol (:mod:`agents.folders`): it is claimed, with ``manifest.json``
 written first, after the arguments are checked and before any start state is made; its identity is the
 env id, its arguments less the reward's (``target_viscosity`` and ``energy_weight``: rescored), the
-split and the number of start states. The Mason numbers, directions and ``--repeats`` are not part of it (a
+split and the number of start states (with ``--schedules``, the number of entries and the file's digest).
+The Mason numbers, directions and ``--repeats`` are not part of it (a
 rerun adds points and realisations to the study). Another command's folder, or one of other parameters, is
 refused (exit 2) unless ``--overwrite`` deletes the whole previous run; a folder made before manifests (it
 holds ``pareto.json``, ``best_constant.json`` or an ``agents.open_loop`` ``command.txt``) is adopted when its
@@ -53,6 +58,15 @@ from agents.folders import (
 )
 from agents.repeats import episode_key, missing, per_state, select
 from agents.rollout import constant_policy, make_env, run_episode
+from agents.schedules import (
+    ScheduleSet,
+    episode_count,
+    episodes_payload,
+    load_schedules,
+    matches,
+    play,
+    prepare_states,
+)
 from agents.statistics import interval_estimates
 from agents.tasks import run_tasks
 from agents.usage import (
@@ -161,29 +175,42 @@ def play_missing(
     record: dict[str, Any], payload: dict[str, Any], env: Any, make_policy: Any, stored_identity: Any
 ) -> dict[str, Any]:
     """Fill ``record`` (whose ``identity`` is set) with the episodes of ``payload`` (``split``, the first
-    ``episodes`` states, ``repeats`` realisations each, default 1), reusing those of the file
-    ``payload['path']`` when ``stored_identity(stored record)`` equals the identity, playing the rest with
+    ``episodes`` states, ``repeats`` realisations each, default 1; with ``schedules``, the first
+    ``episodes`` entries of a schedules file, :func:`agents.schedules.episodes_payload`), reusing those of
+    the file ``payload['path']`` when ``stored_identity(stored record)`` equals the identity (and, for a
+    schedules file, each episode's start state and schedule digest its entry's), playing the rest with
     ``make_policy()`` and writing the file after each; all episodes rescored with the env's reward. Returns
     the record with the requested episodes only (the file keeps every stored one)."""
     path = Path(payload["path"])
     reward = env.unwrapped.reward_function
     indices = range(payload["episodes"])
     repeats = int(payload.get("repeats", 1))
+    scheduled = payload.get("schedules")
     stored: list[dict[str, Any]] = []
+    dropped = False
     if path.exists():
         old = read_json(path)
         if stored_identity(old) == record["identity"]:
-            if not missing(old["episodes"], indices, repeats):
+            stored = list(old["episodes"])
+            if scheduled is not None:
+                stored = [e for e in stored if matches(e, scheduled)]
+                dropped = len(stored) < len(old["episodes"])
+            if not dropped and not missing(stored, indices, repeats):
                 old = rescore_stored(old, reward, path)
                 return {**old, "episodes": select(old["episodes"], indices, repeats)}
-            stored = list(old["episodes"])
     for index, realisation in missing(stored, indices, repeats):
-        trace = run_episode(env, make_policy(), payload["split"], index, realisation=realisation)
-        stored.append({**trace.summary(), "trace": trace.to_dict()})
+        if scheduled is None:
+            trace = run_episode(env, make_policy(), payload["split"], index, realisation=realisation)
+            stored.append({**trace.summary(), "trace": trace.to_dict()})
+        else:
+            stored.append(play(env, make_policy(), payload["split"], scheduled[index], realisation))
         stored.sort(key=episode_key)
         record["episodes"] = stored
         write_json(path, rescore(record, reward))
+        dropped = False
     record["episodes"] = stored
+    if dropped:  # episodes of other schedules removed, none played: the file holds the kept ones
+        write_json(path, rescore(record, reward))
     return {**record, "episodes": select(stored, indices, repeats)}
 
 
@@ -219,7 +246,8 @@ def rescore_stored(record: dict[str, Any], reward: Any, path: Path) -> dict[str,
 def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any]) -> dict[str, Any]:
     """What a point's result depends on (a stored point is reused only if this matches): the command's
     arguments and the env's resolved physical settings (``FieldControlEnv.settings`` less the reward),
-    so a changed default of the env is not silently reused."""
+    so a changed default of the env is not silently reused; with a schedules file, its digest."""
+    digest = payload.get("schedules_digest")
     return _finite(
         {
             "env_settings": settings,
@@ -230,6 +258,7 @@ def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any
             "mason_number": payload["mason_number"],
             "direction": payload["direction"],
             "library_key": library_key,
+            **({"schedules": digest} if digest is not None else {}),
         }
     )
 
@@ -371,6 +400,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=1,
         help="realisations per start state (dipenv.realisations; default 1: the stored state), >= 1",
     )
+    parser.add_argument(
+        "--schedules",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="thickening-control envs: a JSON list of shear-rate schedules (optionally with start_index) "
+        "played instead of the split's own, episode j on schedule j from a start state of --split "
+        "(agents.schedules; docs/agents.md#your-own-schedules)",
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of extra environment arguments")
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument(
@@ -388,10 +426,14 @@ LEGACY = ("pareto.json", "best_constant.json")
 write one too)."""
 
 
-def folder_identity(env_id: str, env_kwargs: dict[str, Any], split: str, episodes: int) -> dict[str, Any]:
-    """The identity in an open-loop folder's manifest (the module docstring)."""
+def folder_identity(
+    env_id: str, env_kwargs: dict[str, Any], split: str, episodes: int, schedules: str | None = None
+) -> dict[str, Any]:
+    """The identity in an open-loop folder's manifest (the module docstring); ``schedules``: the digest
+    of a schedules file (:mod:`agents.schedules`), None for the split's own schedules."""
     kept = {k: v for k, v in env_kwargs.items() if k not in RESCORED_KWARGS and k != "progress"}
-    return {"env_id": env_id, "env_kwargs": kept, "split": split, "episodes": episodes}
+    identity = {"env_id": env_id, "env_kwargs": kept, "split": split, "episodes": episodes}
+    return identity if schedules is None else {**identity, "schedules": schedules}
 
 
 def legacy_problem(folder: Path, requested: dict[str, Any]) -> str | None:
@@ -405,7 +447,11 @@ def legacy_problem(folder: Path, requested: dict[str, Any]) -> str | None:
             record = read_json(path)
             identity = record["identity"]
             recorded = folder_identity(
-                identity["env_id"], dict(identity["env_kwargs"]), identity["split"], identity["episodes"]
+                identity["env_id"],
+                dict(identity["env_kwargs"]),
+                identity["split"],
+                identity["episodes"],
+                identity.get("schedules"),
             )
         except (OSError, ValueError, KeyError, TypeError, AttributeError) as error:
             return f"--out {folder}: {path} is not an open-loop point ({type(error).__name__}: {error})"
@@ -424,7 +470,12 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     env = checked_env(PROG, args.env, env_kwargs, progress=True)
     unwrapped: Any = env.unwrapped
     mapping = unwrapped.mapping
-    episodes = split_size(PROG, unwrapped, args.split, args.episodes)
+    schedules: ScheduleSet | None = None
+    if args.schedules is None:
+        episodes = split_size(PROG, unwrapped, args.split, args.episodes)
+    else:
+        schedules = load_schedules(PROG, args.schedules, unwrapped, args.env, args.split)
+        episodes = episode_count(PROG, schedules, args.episodes)
     if args.mason is None:
         masons = [m for m in parse_mason(",".join(str(v) for v in DEFAULT_MASON))]
         masons = [m for m in masons if math.isinf(m) or mapping.mason_min <= m <= mapping.mason_max]
@@ -456,7 +507,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                 usage_error(PROG, f"--directions: unknown {d!r}; choose from {', '.join(DIRECTIONS)}")
         if len(set(directions)) < len(directions):
             usage_error(PROG, f"--directions lists a direction twice: {args.directions!r}")
-    identity = folder_identity(args.env, env_kwargs, args.split, episodes)
+    identity = folder_identity(
+        args.env, env_kwargs, args.split, episodes, None if schedules is None else schedules.digest
+    )
     if not args.overwrite:
         problem = legacy_problem(args.out, identity)
         if problem is not None:
@@ -474,8 +527,13 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     write_command(args.out, "agents.open_loop", argv)
     (args.out / "points").mkdir(parents=True, exist_ok=True)
     compile_notice(args.scheduler)
-    unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
+    if schedules is None:
+        unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
+    else:
+        write_json(args.out / "schedules.json", schedules.resolved())
+        prepare_states(unwrapped, schedules, episodes)
     env.close()
+    scheduled = episodes_payload(schedules)
     payloads = []
     for m in masons:
         for d in directions if not math.isinf(m) else directions[:1]:
@@ -491,6 +549,11 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                     "direction": d,
                     "label": label,
                     "path": str(args.out / "points" / f"{label}.json"),
+                    **(
+                        {"schedules": scheduled[:episodes], "schedules_digest": schedules.digest}
+                        if schedules is not None and scheduled is not None
+                        else {}
+                    ),
                 }
             )
     records = run_tasks(run_point, payloads, workers=args.workers, scheduler=args.scheduler)
@@ -504,6 +567,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             "env_kwargs": env_kwargs,
             "split": args.split,
             "library_key": records[0]["identity"]["library_key"],
+            **({"schedules": schedules.summary()} if schedules is not None else {}),
             "points": rows,
         },
     )
@@ -526,9 +590,19 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     lines = [",".join(columns)] + [",".join(str(r[c]) for c in columns) for r in rows]
     write_text_atomic(args.out / "pareto.csv", "\n".join(lines) + "\n")
     plot_pareto(rows, args.out / "pareto.png")
+    played = (
+        f"{episodes} {args.split} states"
+        if schedules is None
+        else (
+            schedules.label()
+            if episodes == len(schedules)
+            else f"the first {episodes} of {schedules.label()}"
+        )
+        + f", start states of {args.split}"
+    )
     print(
         f"| point | eta_r (2nd half) | 95% CI | energy <1/Mn> | return | Pareto |  "
-        f"({episodes} {args.split} states x {args.repeats} realisations)"
+        f"({played} x {args.repeats} realisations)"
     )
     print("|---|---|---|---|---|---|")
     for r in rows:

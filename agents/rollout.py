@@ -94,15 +94,24 @@ class EpisodeTrace:
 
 
 def run_episode(
-    env: gym.Env, policy: Policy, split: str, index: int, seed: int = 0, realisation: int = 0
+    env: gym.Env,
+    policy: Policy,
+    split: str,
+    index: int,
+    seed: int = 0,
+    realisation: int = 0,
+    schedule: Any = None,
 ) -> EpisodeTrace:
     """Run ``policy`` from start state ``index`` of ``split`` until the episode ends (a policy with a
     ``reset()`` method, such as a feedback controller of :mod:`agents.controllers`, is reset first).
     ``realisation`` > 0 starts from that state moved by 1e-9 a (:mod:`dipenv.realisations`): an
-    independent repeat of the same episode."""
+    independent repeat of the same episode. ``schedule`` (the thickening-control envs only: ``{"times":
+    [...], "rates": [...]}``) replaces the split's schedule ``index`` (:mod:`agents.schedules`)."""
     options: dict[str, Any] = {"split": split, "index": index}
     if realisation:
         options["realisation"] = realisation
+    if schedule is not None:
+        options["schedule"] = schedule
     obs, info = env.reset(seed=seed, options=options)
     trace = EpisodeTrace(
         split=split, index=index, realisation=realisation, library_key=str(info.get("library_key", ""))
