@@ -275,55 +275,18 @@ def validate_schedule(data: Any, name: str = "schedule") -> sim.PiecewiseLinear:
     return sim.PiecewiseLinear(tuple(times), tuple(rates))
 
 
-class _IndexedSchedule(sim.PiecewiseLinear):
-    """A :class:`sim.PiecewiseLinear` whose look-ups bisect the knots (``O(log n)``) where the parent's
-    convert the knot tuple to an array (``np.searchsorted``) or scan it whole: the same arithmetic on the
-    same knots, so every value, mean and piece is the parent's bit for bit."""
-
-    def __call__(self, time: float) -> float:
-        times, values = self.times, self.values
-        if time < times[0]:
-            return values[0]
-        k = bisect.bisect_right(times, time) - 1
-        if k >= len(times) - 1:
-            return values[-1]
-        t0, t1 = times[k], times[k + 1]
-        return values[k] + (values[k + 1] - values[k]) * (time - t0) / (t1 - t0)
-
-    def _inside(self, start: float, end: float) -> tuple[float, ...]:
-        """The knots strictly between ``start`` and ``end``, in order."""
-        times = self.times
-        return times[bisect.bisect_right(times, start) : bisect.bisect_left(times, end)]
-
-    def integral(self, start: float, end: float) -> float:
-        if end < start:
-            raise ValueError(f"end must be >= start, got {start} and {end}")
-        cuts = [start, *self._inside(start, end), end]
-        total = 0.0
-        for a, b in zip(cuts, cuts[1:], strict=False):
-            mid = 0.5 * (a + b)
-            total += (b - a) * self(mid)
-        return total
-
-    def is_constant_on(self, start: float, end: float) -> bool:
-        inside = [self(t) for t in (start, *self._inside(start, end), end)]
-        return all(v == inside[0] for v in inside) and self.mean(start, end) == inside[0]
-
-
 def schedule_window(schedule: sim.PiecewiseLinear, start: float, end: float) -> sim.PiecewiseLinear:
     """The knots of ``schedule`` that :func:`sim.follow` reads between the schedule times ``start`` and
     ``end`` (the last knot at or before ``start``, all inside, the first at or after ``end``, and one more
     on each side), as a schedule equal to ``schedule`` on ``[start, end]`` bit for bit.
 
-    :func:`sim.follow` reads a schedule through ``sim.variants``, whose ``PiecewiseLinear.__call__``
-    converts all ``n`` knots to an array per call and whose ``pieces``, ``integral`` and
-    ``is_constant_on`` scan all knots per call, once per piece: ``O(m n)`` per interval for ``m`` knots in
-    it. A 100,000-knot schedule took minutes per interval. The window holds only the ``m`` knots near the
-    interval and bisects them, so an interval costs ``O(m log m)`` after an ``O(log n)`` search."""
+    ``sim.PiecewiseLinear`` bisects its knots, so a long schedule is cheap to follow as it is (a
+    100,000-knot schedule once took minutes per interval, when each look-up scanned every knot); the
+    window keeps each interval's work independent of the schedule's length all the same."""
     times = schedule.times
     lo = max(0, bisect.bisect_left(times, start) - 2)
     hi = min(len(times), bisect.bisect_right(times, end) + 2)
-    return _IndexedSchedule(times[lo:hi], schedule.values[lo:hi])
+    return sim.PiecewiseLinear(times[lo:hi], schedule.values[lo:hi])
 
 
 def schedule_to_dict(schedule: sim.PiecewiseLinear) -> dict[str, list[float]]:

@@ -31,7 +31,7 @@ from sim.run import COMPILE_NOTICE, compiled_kernels_cached, run_simulation
 from sim.simulation import RheologyResult, Simulation, SimulationError, StepRecords, summarise
 from sim.state import SimulationState
 from sim.tasks import TaskFailure, parse_seeds, run_tasks
-from sim.variants import PiecewiseLinear, constant, follow, ramp, schedule_from_segments
+from sim.variants import PiecewiseLinear, constant, follow, pieces, ramp, schedule_from_segments
 
 __all__ = [
     "COMPILE_NOTICE",
@@ -39,6 +39,7 @@ __all__ = [
     "PiecewiseLinear",
     "constant",
     "follow",
+    "pieces",
     "ramp",
     "schedule_from_segments",
     "MECHANISMS",

@@ -18,7 +18,6 @@ checks, so that a model is always fed the inputs it was fitted on.
 
 from __future__ import annotations
 
-import bisect
 import math
 from dataclasses import dataclass
 
@@ -90,59 +89,13 @@ class IntervalTable:
     parts: tuple[tuple[tuple[float, float], ...], ...]
 
 
-class _Knots:
-    """Plain-float evaluation of a :class:`sim.PiecewiseLinear` with the same arithmetic as its methods
-    (``__call__``, ``integral``, ``mean``, ``is_constant_on``) and :func:`sim.variants.pieces`, without
-    numpy scalars: a reset builds 48 intervals' pieces in well under a millisecond."""
-
-    def __init__(self, schedule: sim.PiecewiseLinear) -> None:
-        self.times = list(schedule.times)
-        self.values = list(schedule.values)
-
-    def __call__(self, time: float) -> float:
-        times, values = self.times, self.values
-        if time < times[0]:
-            return values[0]
-        k = bisect.bisect_right(times, time) - 1
-        if k >= len(times) - 1:
-            return values[-1]
-        t0, t1 = times[k], times[k + 1]
-        return values[k] + (values[k + 1] - values[k]) * (time - t0) / (t1 - t0)
-
-    def integral(self, start: float, end: float) -> float:
-        cuts = [start, *(t for t in self.times if start < t < end), end]
-        total = 0.0
-        for a, b in zip(cuts, cuts[1:], strict=False):
-            total += (b - a) * self(0.5 * (a + b))
-        return total
-
-    def mean(self, start: float, end: float) -> float:
-        return self(start) if end <= start else self.integral(start, end) / (end - start)
-
-    def is_constant_on(self, start: float, end: float) -> bool:
-        inside = [self(t) for t in (start, *(t for t in self.times if start < t < end), end)]
-        return all(v == inside[0] for v in inside) and self.mean(start, end) == inside[0]
-
-    def pieces(self, start: float, end: float, max_piece: float) -> list[tuple[float, float]]:
-        cuts = [start, *(t for t in self.times if start < t < end), end]
-        out: list[tuple[float, float]] = []
-        for a, b in zip(cuts, cuts[1:], strict=False):
-            if b <= a:
-                continue
-            parts = 1 if self.is_constant_on(a, b) else max(1, math.ceil((b - a) / max_piece - 1e-9))
-            edges = [a + (b - a) * k / parts for k in range(parts)] + [b]
-            out.extend(zip(edges, edges[1:], strict=False))
-        return out
-
-
 def interval_table(
     schedule: sim.PiecewiseLinear, n_intervals: int, interval: float, max_piece: float
 ) -> IntervalTable:
     """The pieces :func:`sim.follow` runs in each of ``n_intervals`` intervals of length ``interval``
-    (:func:`sim.variants.pieces`, each at the schedule's mean over it)."""
+    (:func:`sim.pieces`, each at the schedule's mean over it)."""
     if not (math.isfinite(max_piece) and max_piece > 0.0):
         raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
-    knots = _Knots(schedule)
     start = np.empty(n_intervals)
     mean = np.empty(n_intervals)
     end = np.empty(n_intervals)
@@ -150,10 +103,10 @@ def interval_table(
     piece_time = np.zeros((n_intervals, MAX_PIECES))
     lists = []
     for k in range(n_intervals):
-        parts = knots.pieces(k * interval, (k + 1) * interval, max_piece)
+        parts = sim.pieces(schedule, k * interval, (k + 1) * interval, max_piece)
         if len(parts) > MAX_PIECES:  # merge the tail into the last column (never at the defaults)
             parts = [*parts[: MAX_PIECES - 1], (parts[MAX_PIECES - 1][0], parts[-1][1])]
-        rates = [knots.mean(a, b) for a, b in parts]
+        rates = [schedule.mean(a, b) for a, b in parts]
         times = [b - a for a, b in parts]
         count = len(parts)
         piece_rate[k, :count] = rates
@@ -162,7 +115,7 @@ def interval_table(
         end[k] = rates[-1]
         mean[k] = sum(r * t for r, t in zip(rates, times, strict=True)) / sum(times)
         lists.append(tuple(zip(rates, times, strict=True)))
-    return IntervalTable(start, mean, end, piece_rate, piece_time, knots(0.0), tuple(lists))
+    return IntervalTable(start, mean, end, piece_rate, piece_time, schedule(0.0), tuple(lists))
 
 
 def field_features_into(out: np.ndarray, offset: int, mason: float) -> None:
