@@ -506,11 +506,15 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     eval_freq = int(hp.pop("eval_freq"))
     checkpoint_freq = int(hp.pop("checkpoint_freq"))
 
-    library = probe.unwrapped.library()  # type: ignore[attr-defined]
     # the envs step in n_envs processes unless this process may not start any (a daemonic worker); the
-    # missing start states are pre-sheared in as many
+    # missing start states are pre-sheared in as many (a surrogate env has no start-state library)
     subprocess_envs = n_envs > 1 and can_start_subprocesses()
-    library.ensure(["train", "validation"], progress=progress, workers=n_envs if subprocess_envs else 1)
+    library_of = getattr(probe.unwrapped, "library", None)
+    library_key = None
+    if callable(library_of):
+        library = library_of()
+        library.ensure(["train", "validation"], progress=progress, workers=n_envs if subprocess_envs else 1)
+        library_key = library.key
     n_validation = probe.unwrapped.split_sizes["validation"]  # type: ignore[attr-defined]
     probe.close()
 
@@ -629,7 +633,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         # null until a validation has run (SB3 starts them at -inf): result.json stays valid JSON
         "best_validation_return": _json_number(float(getattr(eval_cb, "best_mean_reward", math.nan))),
         "last_validation_return": _json_number(float(getattr(eval_cb, "last_mean_reward", math.nan))),
-        "library_key": library.key,
+        "library_key": library_key,  # None for a surrogate env (no start-state library)
     }
     env.close()
     eval_env.close()

@@ -104,8 +104,9 @@ def checked_env(prog: str, env_id: str, env_kwargs: dict[str, Any], **fixed: Any
     import dipenv
     from agents.rollout import make_env
 
-    if env_id not in dipenv.ENV_IDS:
-        usage_error(prog, f"--env must be one of {', '.join(dipenv.ENV_IDS)}, got {env_id!r}")
+    known = (*dipenv.ENV_IDS, *dipenv.SURROGATE_IDS)
+    if env_id not in known:
+        usage_error(prog, f"--env must be one of {', '.join(known)}, got {env_id!r}")
     try:
         env = make_env(env_id, {**env_kwargs, **fixed})
     except TypeError as error:  # an unknown keyword

@@ -1,0 +1,42 @@
+"""agents.train takes the surrogate ids (issue 43: pretraining through the fast fidelity): a short PPO run
+finishes, writes its files, and records that no start-state library was used."""
+
+from __future__ import annotations
+
+import json
+
+import dipenv
+from agents import train
+
+
+def test_ppo_trains_on_the_surrogate_id(tmp_path) -> None:
+    out = tmp_path / "run"
+    train.main(
+        [
+            "--env",
+            dipenv.SURROGATE_IDS[0],
+            "--algo",
+            "ppo",
+            "--seed",
+            "0",
+            "--out",
+            str(out),
+            "--hyperparams",
+            "n_timesteps=256",
+            "n_envs=1",
+            "n_steps=128",
+            "eval_freq=128",
+            "checkpoint_freq=128",
+        ]
+    )
+    result = json.loads((out / "result.json").read_text())
+    assert result["timesteps"] == 256 and result["library_key"] is None
+    assert result["best_validation_return"] is not None
+    for name in ("model.zip", "vecnormalize.pkl", "config.yml", "manifest.json"):
+        assert (out / name).exists()
+
+
+def test_every_surrogate_id_has_ppo_hyperparameters() -> None:
+    for env_id in dipenv.SURROGATE_IDS:
+        params = train.load_hyperparams("ppo", env_id)
+        assert params["n_timesteps"] == 1_000_000 and params["eval_freq"] == 50_000
