@@ -41,3 +41,23 @@ def real_pair(name: str, value: object) -> tuple[float, float]:
     ):
         raise ValueError(f"{name} must be two finite real numbers [low, high], got {value!r}")
     return float(value[0]), float(value[1])
+
+
+def check_episode_arguments(
+    episode_steps: object, history_length: object, split: object, start_state: object, splits: Sequence[str]
+) -> None:
+    """The episode arguments both kinds of env take (the simulator's and the surrogate's): ``episode_steps``
+    an integer >= 1, ``history_length`` an integer in [0, 64], ``split`` one of ``splits``, ``start_state``
+    ``"random"`` or ``"cycle"``; ``ValueError`` naming the first one that is not."""
+    if isinstance(episode_steps, bool) or not isinstance(episode_steps, int) or episode_steps < 1:
+        raise ValueError(f"episode_steps must be an integer >= 1, got {episode_steps!r}")
+    if (
+        isinstance(history_length, bool)
+        or not isinstance(history_length, int)
+        or not 0 <= history_length <= 64
+    ):
+        raise ValueError(f"history_length must be an integer in [0, 64], got {history_length!r}")
+    if split not in splits:
+        raise ValueError(f"split must be one of {', '.join(splits)}, got {split!r}")
+    if start_state not in ("random", "cycle"):
+        raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")

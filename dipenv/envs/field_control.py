@@ -30,7 +30,7 @@ from dipenv.actions import (
     field_energy,
     validate_action,
 )
-from dipenv.checks import is_real_number, real_number
+from dipenv.checks import check_episode_arguments, is_real_number, real_number
 from dipenv.observations import (
     MICROSTRUCTURE_DOC_ROWS,
     ObservationFeature,
@@ -171,18 +171,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
     ) -> None:
         super().__init__()
         control_interval = real_number("control_interval", control_interval, 0.0, low_open=True)
-        if isinstance(episode_steps, bool) or not isinstance(episode_steps, int) or episode_steps < 1:
-            raise ValueError(f"episode_steps must be an integer >= 1, got {episode_steps!r}")
-        if (
-            isinstance(history_length, bool)
-            or not isinstance(history_length, int)
-            or not 0 <= history_length <= 64
-        ):
-            raise ValueError(f"history_length must be an integer in [0, 64], got {history_length!r}")
-        if split not in SPLITS:
-            raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
-        if start_state not in ("random", "cycle"):
-            raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")
+        check_episode_arguments(episode_steps, history_length, split, start_state, SPLITS)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         resolved_sizes = check_split_sizes(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)

@@ -46,6 +46,15 @@ SHEAR_STRESS_FEATURE = ObservationFeature(
 )
 
 
+def thickening_frame_features(rate_observed: bool) -> list[ObservationFeature]:
+    """One observation frame of the thickening-control ids: the field-control frame plus the rate, or,
+    for the stress-only ids, with the shear stress in place of eta_r and no rate."""
+    features = observation_features(False)
+    if rate_observed:
+        return [*features, RATE_FEATURE]
+    return [SHEAR_STRESS_FEATURE, *features[1:]]
+
+
 class ThickeningControlEnv(FieldControlEnv):
     """## Description
 
@@ -188,10 +197,7 @@ class ThickeningControlEnv(FieldControlEnv):
 
     # -- configuration ---------------------------------------------------------------------------------------
     def frame_features(self) -> list[ObservationFeature]:
-        features = observation_features(False)
-        if self.rate_observed:
-            return [*features, RATE_FEATURE]
-        return [SHEAR_STRESS_FEATURE, *features[1:]]
+        return thickening_frame_features(self.rate_observed)
 
     def _reward_for(self, volume_fraction: float) -> ViscosityTargetReward:
         cap = self.explicit_cap

@@ -27,8 +27,9 @@ from dipenv.actions import (
     field_energy,
     validate_action,
 )
-from dipenv.envs.thickening_control import DEFAULT_MAX_PIECE, RATE_FEATURE, SHEAR_STRESS_FEATURE
-from dipenv.observations import ObservationFeature, observation_bounds, observation_features
+from dipenv.checks import check_episode_arguments
+from dipenv.envs.thickening_control import DEFAULT_MAX_PIECE, thickening_frame_features
+from dipenv.observations import ObservationFeature, observation_bounds
 from dipenv.rewards import (
     DEFAULT_ENERGY_WEIGHT,
     DEFAULT_FAILURE_PENALTY,
@@ -147,18 +148,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
             raise ValueError(
                 f"the surrogate env renders nothing: render_mode must be None, got {render_mode!r}"
             )
-        if isinstance(episode_steps, bool) or not isinstance(episode_steps, int) or episode_steps < 1:
-            raise ValueError(f"episode_steps must be an integer >= 1, got {episode_steps!r}")
-        if (
-            isinstance(history_length, bool)
-            or not isinstance(history_length, int)
-            or not 0 <= history_length <= 64
-        ):
-            raise ValueError(f"history_length must be an integer in [0, 64], got {history_length!r}")
-        if split not in SPLITS:
-            raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
-        if start_state not in ("random", "cycle"):
-            raise ValueError(f"start_state must be 'random' or 'cycle', got {start_state!r}")
+        check_episode_arguments(episode_steps, history_length, split, start_state, SPLITS)
         if not (math.isfinite(max_piece) and max_piece > 0.0):
             raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
         if split_sizes is not None:
@@ -222,10 +212,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
 
     def frame_features(self) -> list[ObservationFeature]:
         """The frame of ``ThickeningControl`` (or of the stress-only id)."""
-        features = observation_features(False)
-        if self.rate_observed:
-            return [*features, RATE_FEATURE]
-        return [SHEAR_STRESS_FEATURE, *features[1:]]
+        return thickening_frame_features(self.rate_observed)
 
     def settings(self) -> dict[str, Any]:
         """Every setting that shapes an episode (JSON-ready), the model's identity included."""
