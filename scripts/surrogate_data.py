@@ -16,7 +16,15 @@ of behaviour policies chosen per episode from its seed, so that the data cover w
 
 Episode ``s`` uses train start state ``s mod 64`` (the train split's size), the env seed ``s`` (which
 draws its schedule) and behaviour ``BEHAVIOURS[s mod 4]`` with parameters drawn from
-``numpy.random.default_rng(s)``: a pure function of ``s``. Each episode is written to
+``numpy.random.default_rng(s)``: a pure function of ``s``.
+
+Seeds from :data:`POLICY_SEED0` (100,000) on play a **trained policy** instead (``--policies DIR``, an
+``agents.train`` folder with ``seed<k>/model.zip`` and ``vecnormalize.pkl``): episode ``s`` uses the
+policy of the ``(s - 100000) mod K``-th seed folder (sorted), its actions sampled (not the mean), with
+``torch.manual_seed(s)``. These episodes cover the states the trained policies visit, which the four
+behaviours above do not (the surrogate scored the PPO policies 13-23 too low, ``docs/surrogate.md``).
+Their files record ``behaviour`` ``policy:<seed folder>`` and the model's sha256 (``policy_digest``); a
+rerun with other models at the same seeds is refused. Each episode is written to
 ``OUT/episodes/ep<s>.npz`` (atomically) with:
 
 * ``obs`` (49, 15): the observation before the first action and after each of the 48 intervals;
@@ -62,6 +70,7 @@ INFO_KEYS = (
     "time",
 )
 DATA_VERSION = 1
+POLICY_SEED0 = 100_000
 """Bump when the behaviours or the file layout change (part of the folder's identity)."""
 
 
@@ -97,6 +106,46 @@ class Behaviour:
         return float(np.clip(u, -1.0, 1.0))
 
 
+def policy_runs(folder: Path) -> list[Path]:
+    """The seed folders of an ``agents.train`` folder that hold a model, sorted by name."""
+    return sorted(p for p in folder.iterdir() if p.is_dir() and (p / "model.zip").is_file())
+
+
+def _digest(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]
+
+
+class PolicyBehaviour:
+    """A trained SB3 policy with sampled actions (``rate`` ignored; it reads the observation)."""
+
+    def __init__(self, run: Path, seed: int) -> None:
+        import pickle
+
+        import torch
+        import yaml
+        from stable_baselines3 import PPO, SAC
+
+        torch.set_num_threads(1)
+        config = yaml.safe_load((run / "config.yml").read_text())
+        self.model = (PPO if config["algo"] == "ppo" else SAC).load(str(run / "model.zip"), device="cpu")
+        self.normaliser = None
+        stats = run / "vecnormalize.pkl"
+        if stats.is_file():
+            with open(stats, "rb") as handle:
+                self.normaliser = pickle.load(handle)
+            self.normaliser.training = False
+        torch.manual_seed(seed)
+        self.kind = f"policy:{run.name}"
+        self.digest = _digest(run / "model.zip")
+
+    def act(self, obs: np.ndarray) -> float:
+        x = self.normaliser.normalize_obs(obs) if self.normaliser is not None else obs
+        action, _ = self.model.predict(x, deterministic=False)
+        return float(np.asarray(action).reshape(-1)[0])
+
+
 def play(payload: dict[str, Any]) -> dict[str, Any]:
     """Play episode ``payload["seed"]`` and write its file (a pure function of the seed)."""
     import gymnasium as gym
@@ -105,10 +154,22 @@ def play(payload: dict[str, Any]) -> dict[str, Any]:
 
     seed = int(payload["seed"])
     path = Path(payload["out"]) / "episodes" / f"ep{seed:05d}.npz"
+    policy: PolicyBehaviour | None = None
+    if seed >= POLICY_SEED0:
+        runs = policy_runs(Path(payload["policies"]))
+        policy = PolicyBehaviour(runs[(seed - POLICY_SEED0) % len(runs)], seed)
     if path.exists():
+        if policy is not None:
+            with np.load(path) as old:
+                recorded = str(old["policy_digest"]) if "policy_digest" in old.files else ""
+            if recorded != policy.digest:
+                raise ValueError(
+                    f"{path} was played by the model with digest {recorded or '(none)'}, --policies gives "
+                    f"{policy.digest}: use another --out or other seeds"
+                )
         return {"seed": seed, "status": "reused"}
-    kind = BEHAVIOURS[seed % len(BEHAVIOURS)]
-    behaviour = Behaviour(kind, np.random.default_rng(seed))
+    kind = policy.kind if policy is not None else BEHAVIOURS[seed % len(BEHAVIOURS)]
+    behaviour = Behaviour(BEHAVIOURS[seed % len(BEHAVIOURS)], np.random.default_rng(seed))
     env = gym.make(payload.get("env_id", ENV_ID))
     index = seed % env.unwrapped.split_sizes["train"]
     obs, info = env.reset(seed=seed, options={"split": "train", "index": index})
@@ -118,7 +179,7 @@ def play(payload: dict[str, Any]) -> dict[str, Any]:
     done = False
     while not done:
         rate = 10.0 ** float(obs[14])
-        action = behaviour(rate)
+        action = policy.act(obs) if policy is not None else behaviour(rate)
         obs, reward, terminated, truncated, info = env.step(np.array([action], dtype=np.float32))
         if info.get("simulation_failed"):
             return {"seed": seed, "status": "failed", "message": str(info.get("failure_message"))}
@@ -141,6 +202,7 @@ def play(payload: dict[str, Any]) -> dict[str, Any]:
             behaviour=np.array(kind),
             start_index=np.array(index),
             library_key=np.array(library_key),
+            policy_digest=np.array(policy.digest if policy is not None else ""),
             **{key: np.array(values) for key, values in columns.items()},
         )
     return {"seed": seed, "status": "finished", "return": float(np.sum(rewards))}
@@ -152,6 +214,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--seeds", required=True, help="episode seeds: 0-199, or 0,5,10-20")
     parser.add_argument("--env-id", default=ENV_ID, help=f"env id (default {ENV_ID}; a Tiny id for tests)")
     parser.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    parser.add_argument(
+        "--policies",
+        type=Path,
+        default=None,
+        help=f"agents.train folder whose seed<k>/ policies play the seeds >= {POLICY_SEED0} (docstring)",
+    )
     parser.add_argument("--overwrite", action="store_true", help="delete the folder's previous run first")
     return parser
 
@@ -165,6 +233,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seeds: {exc}")
     if args.workers < 1:
         parser.error(f"--workers must be >= 1, got {args.workers}")
+    if any(s >= POLICY_SEED0 for s in seeds):
+        if args.policies is None:
+            parser.error(f"--policies: seeds >= {POLICY_SEED0} play trained policies; name their folder")
+        if not args.policies.is_dir() or not policy_runs(args.policies):
+            parser.error(f"--policies: {args.policies} holds no seed folder with a model.zip")
+    elif args.policies is not None:
+        parser.error(f"--policies is used only by seeds >= {POLICY_SEED0}; none was given")
     try:
         claim(
             args.out,
@@ -175,7 +250,10 @@ def main(argv: list[str] | None = None) -> int:
         )
     except RunFolderError as exc:
         parser.exit(2, f"surrogate_data.py: error: {exc}\n")
-    payloads = [{"seed": s, "out": str(args.out), "env_id": args.env_id} for s in seeds]
+    payloads = [
+        {"seed": s, "out": str(args.out), "env_id": args.env_id, "policies": str(args.policies)}
+        for s in seeds
+    ]
 
     def report(index: int, result: Any) -> None:
         line = result if isinstance(result, dict) else {"seed": seeds[index], "error": str(result)}
