@@ -14,10 +14,15 @@ imports it too):
   unit of eta_r below the bulk's (docs/environments.md#box-size); kept because published results use them;
 * ``dipenv/FieldMagnitudeTiny-v0``, ``dipenv/FieldVectorTiny-v0``: N = 32, 0.02 strain per action, 10
   actions per episode, Mn in [0.1, 20], a 4/2/2-state library: for tests, CI and the demo;
-  ``dipenv/ThickeningControlTiny-v0`` likewise.
+  ``dipenv/ThickeningControlTiny-v0`` likewise;
+* ``dipenv/ViscosityTracking-v0``: field strength and direction so that eta_r follows a target schedule
+  (9-25) while the shear rate follows its own (the box of ``ThickeningControl-v2``);
+  ``dipenv/ViscosityTrackingStressOnly-v0`` without the rate (and with Sigma_xy for eta_r);
+  ``dipenv/ViscosityTrackingTiny-v0`` in the tiny box, for tests (issue 44).
 
-See :class:`dipenv.envs.field_control.FieldMagnitudeEnv` and
-:class:`dipenv.envs.thickening_control.ThickeningControlEnv` for the full descriptions.
+See :class:`dipenv.envs.field_control.FieldMagnitudeEnv`,
+:class:`dipenv.envs.thickening_control.ThickeningControlEnv` and
+:class:`dipenv.envs.viscosity_tracking.ViscosityTrackingEnv` for the full descriptions.
 """
 
 from __future__ import annotations
@@ -28,6 +33,12 @@ from gymnasium.envs.registration import register, registry
 
 from dipenv.envs.field_control import FieldMagnitudeEnv, FieldVectorEnv
 from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningControlStressOnlyEnv
+from dipenv.envs.viscosity_tracking import (
+    TRACKING_KWARGS,
+    TRACKING_TINY_KWARGS,
+    ViscosityTrackingEnv,
+    ViscosityTrackingStressOnlyEnv,
+)
 
 __all__ = [
     "ENV_IDS",
@@ -37,10 +48,14 @@ __all__ = [
     "THICKENING_V2_KWARGS",
     "THICKENING_TINY_KWARGS",
     "TINY_KWARGS",
+    "TRACKING_KWARGS",
+    "TRACKING_TINY_KWARGS",
     "FieldMagnitudeEnv",
     "FieldVectorEnv",
     "ThickeningControlEnv",
     "ThickeningControlStressOnlyEnv",
+    "ViscosityTrackingEnv",
+    "ViscosityTrackingStressOnlyEnv",
 ]
 
 TINY_KWARGS: dict[str, Any] = {
@@ -94,6 +109,7 @@ further; yet those fields were the most expensive to simulate (the adaptive step
 ``u = 1`` (docs/thickening_control.md#action-range-v2)."""
 
 _THICKENING = "dipenv.envs.thickening_control"
+_TRACKING = "dipenv.envs.viscosity_tracking"
 _SPECS = {
     "dipenv/FieldMagnitude-v0": ("FieldMagnitudeEnv", {}),
     "dipenv/FieldVector-v0": ("FieldVectorEnv", {}),
@@ -114,6 +130,9 @@ _SPECS = {
         f"{_THICKENING}:ThickeningControlStressOnlyEnv",
         THICKENING_V2_KWARGS,
     ),
+    "dipenv/ViscosityTracking-v0": (f"{_TRACKING}:ViscosityTrackingEnv", TRACKING_KWARGS),
+    "dipenv/ViscosityTrackingStressOnly-v0": (f"{_TRACKING}:ViscosityTrackingStressOnlyEnv", TRACKING_KWARGS),
+    "dipenv/ViscosityTrackingTiny-v0": (f"{_TRACKING}:ViscosityTrackingEnv", TRACKING_TINY_KWARGS),
 }
 """Entry point and keyword arguments of each id. No ``max_episode_steps``: each env truncates itself after
 its own ``episode_steps`` (``gym.make(id, episode_steps=20)`` gives 20-action episodes, as ``settings()``

@@ -435,7 +435,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
             raise RuntimeError("call reset() before step() (and after an episode has ended)")
         clipped, was_clipped = validate_action(action, (3,) if self.vector_field else (1,))
         command_mn = self.mapping.mason_number(float(clipped[0]))
-        direction = direction_from_action(float(clipped[1]), float(clipped[2])) if self.vector_field else _Y
+        direction = self._action_direction(clipped) if self.vector_field else _Y
         simulation = self._simulation
         assert simulation is not None
         amplitudes, end_amplitude = self.actuator.schedule(
@@ -517,6 +517,11 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         self._start_cache.clear()
 
     # -- internals ------------------------------------------------------------------------------------------
+    def _action_direction(self, clipped: np.ndarray) -> np.ndarray:
+        """The field direction of a vector env's clipped action ``[u, polar, azimuth]``
+        (:func:`dipenv.actions.direction_from_action`; a subclass may refine it)."""
+        return direction_from_action(float(clipped[1]), float(clipped[2]))
+
     def _advance(self, simulation: sim.Simulation, end_time: float) -> sim.StepRecords:
         """Advance the episode's simulation to the clock ``end_time`` (the shear rate held as it is)."""
         return simulation.advance_to(end_time)
