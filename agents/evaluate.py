@@ -2,8 +2,9 @@
 
     python -m agents.evaluate [RUN_DIRS...] --baseline OPEN_LOOP_DIR --out DIR [--controllers DIR...]
         [--split test] [--episodes N] [--repeats K] [--policy-repeats K] [--model final|best]
-        [--actions mean|sampled|both] [--play-kwargs JSON] [--validation-baseline OPEN_LOOP_DIR]
-        [--schedules FILE] [--workers 2] [--scheduler ADDRESS] [--resume | --overwrite]
+        [--actions mean|sampled|both] [--play-kwargs JSON] [--play-env ID]
+        [--validation-baseline OPEN_LOOP_DIR] [--schedules FILE] [--workers 2] [--scheduler ADDRESS]
+        [--resume | --overwrite]
 
 ``--repeats K`` plays every held-out state K times (realisations 0 .. K-1 of :mod:`dipenv.realisations`:
 the state moved by 1e-9 a, so that the chaotic noise of one episode averages out); the baseline and the
@@ -32,6 +33,12 @@ with: ``'{"simulation_overrides": {}}'`` tests policies trained with a coarser t
 (``{"simulation_overrides": {"max_displacement": 0.008}}``, half the simulator steps) in the reference
 physics of the baseline. The physics check above then applies to the arguments played, the table's header
 names them, and the per-run results are played again when they change.
+
+``--play-env ID`` plays the trained runs in another env than the one they were trained on, with that env's
+default arguments (and ``--play-kwargs``): policies trained on the surrogate
+(``dipenv/ThickeningControlSurrogate-v0``) are judged in the simulator with ``--play-env
+dipenv/ThickeningControl-v2``. The observation and action spaces must be the same (exit 2 naming both
+otherwise). Their ``learning.png`` curves stay those of the training env (the surrogate's returns).
 
 ``RUN_DIRS`` are training run folders (with ``model.zip``) or folders of them (``--seeds`` output:
 ``seed0/``, ``seed1/``, ...); the runs under one argument (or with one parent folder) form one policy,
@@ -73,8 +80,8 @@ The output folder follows the run-folder protocol (:mod:`agents.folders`): it is
 written first, after every argument and input is checked and before any episode is played; its identity is
 the command's arguments but ``--workers``/``--scheduler`` (RUN_DIRS, ``--baseline``, ``--controllers``,
 ``--validation-baseline`` as paths, compared by the files they name; the split, ``--episodes``,
-``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``, and the digest of
-``--schedules``). A rerun of the same
+``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``, ``--play-env``, and the
+digest of ``--schedules``). A rerun of the same
 arguments continues (per-run results are reused); other arguments, or another command's folder, are refused
 (exit 2) unless ``--overwrite`` deletes the whole previous evaluation. A folder made before manifests (it
 holds ``table.md``, ``verdict.md``, ``results.json`` or an ``agents.evaluate`` ``command.txt``) is adopted.
@@ -489,6 +496,30 @@ def load_controller(
     return name, rescore(record, reward)
 
 
+def check_play_env(play_env: str, play_kwargs: dict[str, Any], trained: dict[Path, dict[str, Any]]) -> None:
+    """Exit 2 unless ``play_env`` exists and every run's training env has its observation and action
+    spaces (a policy reads the one and writes the other; nothing else of the env has to agree)."""
+    try:
+        target = make_env(play_env, {**play_kwargs, "progress": False})
+    except Exception as exc:  # an unknown id or a bad argument, in Gymnasium's or the env's words
+        usage_error(PROG, f"--play-env {play_env}: cannot be made ({exc})")
+    spaces = (target.observation_space, target.action_space)
+    target.close()
+    made: dict[tuple[str, str], tuple[Any, Any]] = {}
+    for run, config in trained.items():
+        key = (config["env_id"], json.dumps(config["env_kwargs"], sort_keys=True))
+        if key not in made:
+            source = make_env(config["env_id"], {**config["env_kwargs"], "progress": False})
+            made[key] = (source.observation_space, source.action_space)
+            source.close()
+        if made[key] != spaces:
+            usage_error(
+                PROG,
+                f"--play-env {play_env}: {run} was trained on {config['env_id']} with observation space "
+                f"{made[key][0]} and action space {made[key][1]}; {play_env} has {spaces[0]} and {spaces[1]}",
+            )
+
+
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
@@ -518,7 +549,8 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
         return np.asarray(action)
 
     deterministic = not payload.get("stochastic", False)
-    env = make_env(config["env_id"], {**payload.get("env_kwargs", config["env_kwargs"]), "progress": False})
+    env_id = payload.get("env_id", config["env_id"])  # --play-env: another env than the training one
+    env = make_env(env_id, {**payload.get("env_kwargs", config["env_kwargs"]), "progress": False})
     # The episodes played so far are kept in a partial file beside ``path`` after each one, so an
     # interrupted evaluation resumes at the next episode (each episode is a function of its start state,
     # realisation and the torch seed set below, not of the episodes before it).
@@ -1107,6 +1139,14 @@ def build_parser() -> argparse.ArgumentParser:
         "'{\"simulation_overrides\": {}}' for policies trained with a coarser step (default: none)",
     )
     parser.add_argument(
+        "--play-env",
+        default=None,
+        metavar="ID",
+        help="play the trained runs in this env id instead of the one they were trained on, with its default "
+        "arguments (plus --play-kwargs), e.g. dipenv/ThickeningControl-v2 for policies trained on "
+        "dipenv/ThickeningControlSurrogate-v0; the observation and action spaces must be the same",
+    )
+    parser.add_argument(
         "--schedules",
         type=Path,
         default=None,
@@ -1148,6 +1188,7 @@ def folder_identity(
         "model": args.model,
         "actions": args.actions,
         "play_kwargs": play,
+        **({"play_env": args.play_env} if args.play_env is not None else {}),
         **({"schedules": schedules.digest} if schedules is not None else {}),
     }
 
@@ -1170,11 +1211,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if play_kwargs and not args.runs:
         usage_error(PROG, "--play-kwargs applies to trained runs (RUN_DIRS); none were given")
     trained = {run: read_run_config(run) for runs in groups.values() for run in runs}
-    # What each run plays with: its training arguments, overridden by --play-kwargs.
+    if args.play_env is not None and not args.runs:
+        usage_error(PROG, "--play-env applies to trained runs (RUN_DIRS); none were given")
+    # What each run plays with: its training env and arguments overridden by --play-kwargs, or (--play-env)
+    # another env with its defaults overridden by --play-kwargs.
     configs = {
-        run: {**config, "env_kwargs": {**config["env_kwargs"], **play_kwargs}}
+        run: (
+            {**config, "env_id": args.play_env, "env_kwargs": dict(play_kwargs)}
+            if args.play_env is not None
+            else {**config, "env_kwargs": {**config["env_kwargs"], **play_kwargs}}
+        )
         for run, config in trained.items()
     }
+    if args.play_env is not None:
+        check_play_env(args.play_env, play_kwargs, trained)
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
         if (env_id, run_config["env_kwargs"]) == (pareto["env_id"], pareto["env_kwargs"]):
@@ -1277,6 +1327,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     "split": split,
                     "indices": indices,
                     "repeats": policy_repeats,
+                    "env_id": configs[run]["env_id"],
                     "env_kwargs": configs[run]["env_kwargs"],
                     "path": str(args.out / "runs" / f"{label}.json"),
                     **({"schedules": scheduled} if scheduled is not None else {}),
@@ -1291,6 +1342,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                         **({"stochastic": True} if sampled else {}),
                         **({"repeats": policy_repeats} if policy_repeats > 1 else {}),
                         **({"play_kwargs": play_kwargs} if play_kwargs else {}),
+                        **({"play_env": args.play_env} if args.play_env is not None else {}),
                         **({"schedules": schedules.digest} if schedules is not None else {}),
                     },
                 }
