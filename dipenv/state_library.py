@@ -75,11 +75,13 @@ PHYSICS_EXCLUDED = frozenset(
         "sweep_figures.py",
         "tasks.py",
         "runs/",
+        "plots/",
     }
 )
 """Files of ``sim/`` (paths relative to it; a trailing ``/`` names a whole subpackage) that do not shape a
 start state: the pre-shear runs without a field, so the dipolophoresis kernels and their tables never run;
-the command line, a run's files and sampled observables (g(r), MSD, fabric, layering), figures, sweeps,
+the command line, a run's files and sampled observables (g(r), MSD, fabric, layering), figures and
+movies (``plots/``), run folders, snapshots, GSD trajectories and initial states (``runs/``), sweeps,
 flow curves, rate schedules and the task engine do not touch its trajectory. Everything else (the
 stepper, geometry, hydrodynamics, contacts, the stress, config, state, the numba settings) is part of
 :func:`physics_source_digest`. So a speed-up of the field's kernels keeps the start states and every

@@ -6,6 +6,9 @@
     python -m sim figures DIR [--out FIGURES]
     python -m sim flow-curve --phi 0.45 --n-particles 100 --mason 1 --rates 0.1,0.3,1,3,10 \
                              --strain-per-rate 10 --out DIR [--down] [--seed S] [--quiet]
+    python -m sim run ... --initial-state FILE[:FRAME] [--field-from-state] [--snapshot-every S]
+                          [--trajectory-every S]
+    python -m sim movie RUN [--out FILE.gif|.mp4] [--fps 10] [--every 1]
 
 ``run`` and ``sweep`` share one table of simulation options (:data:`SIMULATION_OPTIONS`); in ``sweep``
 ``--phi``, ``--n-particles``, ``--mason`` and ``--mechanism`` take comma lists (the sweep is their
@@ -74,6 +77,11 @@ FLAGS = {
     "overwrite": "--overwrite",
     "rates": "--rates",
     "strain_per_rate": "--strain-per-rate",
+    "state": "--initial-state",
+    "initial_state": "--initial-state",
+    "field_from_state": "--field-from-state",
+    "snapshot_every": "--snapshot-every",
+    "trajectory_every": "--trajectory-every",
 }
 """The flag of each ``SimulationConfig`` field (and ``run_simulation`` argument) the command line sets."""
 
@@ -326,8 +334,8 @@ SIMULATION_OPTIONS = (
     ),
     _Option(
         "--strain",
-        "run length, > 0: accumulated strain (time in units 1/gammadot_ref with --shear-rate 0) "
-        "(default 30)",
+        "run length, > 0: accumulated strain (time in units 1/gammadot_ref with --shear-rate 0); the run "
+        "ends there exactly (with run --initial-state: counted from the file's strain) (default 30)",
         float,
         30.0,
     ),
@@ -423,6 +431,39 @@ def _add_run_arguments(run: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim run``."""
     _add_simulation_options(run, lists=False)
     run.add_argument("--seed", type=int, default=1, help="seed of the initial packing, >= 0 (default 1)")
+    run.add_argument(
+        "--initial-state",
+        metavar="FILE",
+        default=None,
+        help="start from the configuration in FILE instead of a random packing: a run's checkpoint.npz, "
+        "final_state.npz or snapshots/*.npz, or a GSD file (its last frame; FILE.gsd:K for frame K, "
+        "negative from the end). Its positions, time and strain are taken (the run adds --strain to "
+        "them; its transient counts from there); its N must be --n-particles and its box the one --phi "
+        "and --n-particles give. Rerun and --resume with the same FILE",
+    )
+    run.add_argument(
+        "--field-from-state",
+        action="store_true",
+        help="take the field (Mason number, direction) and the shear rate from --initial-state's file "
+        "instead of --mason, --field-direction and --shear-rate",
+    )
+    run.add_argument(
+        "--snapshot-every",
+        type=float,
+        default=None,
+        metavar="S",
+        help="keep the state at every multiple of S strain (time with --shear-rate 0) after the start as "
+        "OUT/snapshots/strain_XXXX.npz (files --initial-state reads), S > 0, at most 1e5 of them",
+    )
+    run.add_argument(
+        "--trajectory-every",
+        type=float,
+        default=None,
+        metavar="S",
+        help="write a frame at every multiple of S strain (time with --shear-rate 0) into OUT/trajectory.gsd "
+        "(GSD, HOOMD schema: sheared box tilt xy = offset/L, diameter 2a, time/strain/field/rate in log/), "
+        "S > 0, at most 1e5 frames; python -m sim movie OUT draws it",
+    )
     _add_folder_arguments(
         run,
         "continue the run in OUT from its checkpoint (refused if OUT holds no run); only --strain may "
@@ -548,6 +589,29 @@ def build_parser() -> argparse.ArgumentParser:
     )
     _add_flow_curve_arguments(flow_curve)
     flow_curve.set_defaults(parser=flow_curve)
+    movie = sub.add_parser(
+        "movie",
+        help="draw a run's trajectory.gsd as a movie of the layers forming and melting (GIF or MP4)",
+        description="Draw every --every-th frame of RUN/trajectory.gsd (python -m sim run ... "
+        "--trajectory-every S) as a movie: a side view (layer axis up, against the flow) and the view "
+        "along the field, spheres to scale coloured by their coordinate along the layer axis (nearest the "
+        "field; y without one), the strain, Mason number and layer order in the title. Bad input exits "
+        "with status 2.",
+    )
+    movie.add_argument("run", metavar="RUN", help="a run folder holding trajectory.gsd, or a GSD file")
+    movie.add_argument(
+        "--out",
+        default=None,
+        help="the movie file: .gif (Pillow) or .mp4 (needs ffmpeg) (default RUN/movie.gif)",
+    )
+    movie.add_argument(
+        "--fps", type=int, default=10, help="frames per second, an integer in [1, 100] (default 10)"
+    )
+    movie.add_argument(
+        "--every", type=int, default=1, help="draw every K-th frame, an integer >= 1 (default 1: all)"
+    )
+    movie.add_argument("--quiet", action="store_true", help="do not print the file written")
+    movie.set_defaults(parser=movie)
     return parser
 
 
@@ -796,8 +860,19 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
     config = _config(args)
 
     from sim.run import run_simulation
+    from sim.runs.initial_state import InitialState, read_initial_state, with_field_of
     from sim.simulation import SimulationError
 
+    initial: InitialState | None = None
+    if args.field_from_state and args.initial_state is None:
+        parser.error("--field-from-state needs --initial-state FILE (the file whose field it takes)")
+    if args.initial_state is not None:
+        try:
+            initial = read_initial_state(args.initial_state, FLAGS)
+            if args.field_from_state:
+                config = with_field_of(config, initial, FLAGS)
+        except ValueError as exc:
+            parser.error(with_flags(str(exc)))
     try:
         result = run_simulation(
             config,
@@ -807,6 +882,9 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
             overwrite=args.overwrite,
             command=["python", "-m", "sim", *args_list],
             parameter_names=FLAGS,
+            state=initial,
+            snapshot_every=args.snapshot_every,
+            trajectory_every=args.trajectory_every,
         )
     except (FileNotFoundError, ValueError, NotImplementedError) as exc:
         parser.error(with_flags(str(exc)))
@@ -1007,6 +1085,22 @@ def _flow_curve(args: argparse.Namespace, args_list: list[str]) -> int:
     return 1 if failed else 0
 
 
+def _movie(args: argparse.Namespace) -> int:
+    """``python -m sim movie``."""
+    from sim.plots.movie import render_movie
+
+    parser: argparse.ArgumentParser = args.parser
+    try:
+        written = render_movie(args.run, args.out, fps=args.fps, every=args.every)
+    except (FileNotFoundError, ValueError) as exc:
+        parser.error(str(exc))
+    except OSError as exc:
+        output_error(parser, "--out", exc)
+    if not args.quiet:
+        print(written)
+    return 0
+
+
 def _figures(args: argparse.Namespace) -> int:
     """``python -m sim figures``."""
     from sim.sweep_figures import make_figures
@@ -1050,4 +1144,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return _sweep(args, args_list)
     if args.command == "flow-curve":
         return _flow_curve(args, args_list)
+    if args.command == "movie":
+        return _movie(args)
     return _figures(args)

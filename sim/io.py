@@ -9,8 +9,9 @@ A run directory holds:
                    gap, solver iterations, overlap sweeps, RMS of the DIP and shear velocities, eta_r
                    (Sigma_xy / rate), N1, N2 and the six independent stress components of every
                    contribution (stress in eta gammadot_ref)
-``checkpoint.npz`` state + records + parameters + observable accumulators; ``--resume`` continues from it
-                   bit for bit
+``checkpoint.npz`` state + records + parameters + observable accumulators (and the count of the
+                   trajectory's frames); ``--resume`` continues from it bit for bit; a finished run's
+                   holds the state before its last, shortened step
 ``final_state.npz`` positions and the rest of the state at the end (with the accumulated non-affine
                    displacement), with the box side and strain
 ``result.json``    averaged rheology with standard errors, diffusivities (the CLI's ``--json`` line)
@@ -24,6 +25,10 @@ A run directory holds:
 ``manifest.json``  the folder's owner, written first: command (``sim run``), its parameters (the
                    identity a rerun is compared with), command line, version and source digest
                    (:mod:`sim.runs.folder`, the run-folder protocol shared by every command)
+``snapshots/``     with ``--snapshot-every S``: the state at every multiple of ``S`` strain,
+                   ``strain_XXXX.npz``, as ``final_state.npz`` holds it (:mod:`sim.runs.snapshots`)
+``trajectory.gsd`` with ``--trajectory-every S``: a GSD (HOOMD schema) frame at every multiple of ``S``
+                   strain (:mod:`sim.runs.trajectory`)
 ================== ==================================================================================
 
 Every file, the plots included, is written atomically (:func:`atomic_file`: a temporary file in the same
@@ -145,8 +150,14 @@ def read_json(path: Path) -> dict[str, Any]:
     return from_json_ready(json.loads(path.read_text()))
 
 
-def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | None = None) -> None:
-    """``params.json``: the configuration, derived quantities and versions."""
+def write_params(
+    out_dir: Path,
+    config: SimulationConfig,
+    command: list[str] | None = None,
+    extra: Mapping[str, Any] | None = None,
+) -> None:
+    """``params.json``: the configuration, derived quantities and versions, and ``extra`` entries (a run
+    from a given configuration: ``initial_state``; ``snapshot_every``, ``trajectory_every``)."""
     write_json(
         out_dir / "params.json",
         {
@@ -161,6 +172,7 @@ def write_params(out_dir: Path, config: SimulationConfig, command: list[str] | N
             ),
             "command": command,
             "versions": versions(),
+            **(extra or {}),
         },
     )
 

@@ -2,13 +2,29 @@
 
 Besides the step records (rheology), a run samples g(r), its x–y projection and the displacement for the
 MSD at fixed clock times (:mod:`sim.run_observables`); their accumulators travel in the checkpoint, so a
-resumed run continues them bit for bit."""
+resumed run continues them bit for bit. On request it keeps its state at multiples of its strain
+(``snapshots/``, :mod:`sim.runs.snapshots`) and a GSD trajectory (``trajectory.gsd``,
+:mod:`sim.runs.trajectory`), and it may start from a given configuration instead of a random packing
+(:mod:`sim.runs.initial_state`).
+
+A run ends at its requested strain exactly: the steps adapt (they are at most ``time_step``), and the one
+that would pass the end is shortened to land on it (:func:`_advance_with_checkpoints`). The update of that
+step is the variable-step AB2 the stepper always uses,
+``x_{n+1} = x_n + h [(1 + r/2) u_n - (r/2) u_{n-1}]`` with ``r = h / h_prev`` (:mod:`sim.integrators`), so
+it stays second order. Every earlier step is the one an unshortened run takes, bit for bit: the cap on
+the step (``end - clock``) only binds for the last one, and not even there in a run of a whole number of
+steps (:func:`_step_at_most_to`). The checkpoint a finished run leaves holds the
+state before that shortened step, so that extending the run (``--resume`` with a longer ``--strain``)
+continues exactly as the longer run from the start does.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import math
 import os
+import shutil
 import signal
 import sys
 import threading
@@ -24,7 +40,11 @@ from sim.config import MAX_STEPS, SimulationConfig
 from sim.figures import plot_rheology
 from sim.run_observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
 from sim.runs.folder import RunFolderError, claim, normalise, preview, read_manifest
+from sim.runs.initial_state import InitialState, check_initial_state, read_initial_state
 from sim.runs.legacy import legacy_markers
+from sim.runs.schedule import StrainMultiples
+from sim.runs.snapshots import SNAPSHOT_FOLDER, SnapshotWriter
+from sim.runs.trajectory import TRAJECTORY, TrajectoryError, TrajectoryWriter
 from sim.simulation import Simulation, StepRecords
 from sim.state import SimulationState
 from sim.step_parameters import field_strength
@@ -118,8 +138,19 @@ RUN_FILES = (
     "stress.png",
     "layering.csv",
     "layering.png",
+    TRAJECTORY,
 )
-"""The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run."""
+"""The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run.
+(``snapshots/``, :data:`sim.runs.snapshots.SNAPSHOT_FOLDER`, is its folder of snapshots.)"""
+
+MAX_KEPT_STATES = 100_000
+"""Most snapshots, and most trajectory frames, a run may plan (``--strain`` over ``--snapshot-every`` or
+``--trajectory-every``): more is almost certainly a typo, and fills the disk (a frame of N = 2000 takes
+72 kB)."""
+
+OPTIONAL_IDENTITY = ("initial_state", "snapshot_every", "trajectory_every")
+"""Identity keys a run has only when they are set (a missing key reads as None, so that a run folder made
+before they existed, or without them, keeps its identity)."""
 
 
 COMMAND = "sim run"
@@ -127,11 +158,24 @@ COMMAND = "sim run"
 
 
 def run_identity(
-    config: SimulationConfig, sample_interval: float = DEFAULT_SAMPLE_INTERVAL
+    config: SimulationConfig,
+    sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
+    initial_state: str | None = None,
+    snapshot_every: float | None = None,
+    trajectory_every: float | None = None,
 ) -> dict[str, Any]:
     """The parameters that make a run's results what they are (its folder's identity in the manifest):
-    every field of ``config`` and the observables' ``sample_interval``."""
-    return {**config.to_dict(), "sample_interval": float(sample_interval)}
+    every field of ``config``, the observables' ``sample_interval`` and, when set, the digest of the
+    configuration it starts from (:attr:`sim.runs.initial_state.InitialState.digest`) and the spacings of
+    its snapshots and trajectory frames (strain)."""
+    identity: dict[str, Any] = {**config.to_dict(), "sample_interval": float(sample_interval)}
+    optional = {
+        "initial_state": initial_state,
+        "snapshot_every": None if snapshot_every is None else float(snapshot_every),
+        "trajectory_every": None if trajectory_every is None else float(trajectory_every),
+    }
+    identity.update({key: value for key, value in optional.items() if value is not None})
+    return identity
 
 
 def _saved_config(out: Path) -> SimulationConfig | None:
@@ -156,7 +200,12 @@ def _run_differences(resume: bool) -> Callable[[Mapping[str, Any], Mapping[str, 
 
     def compare(saved: Mapping[str, Any], requested: Mapping[str, Any]) -> list[str]:
         old, new = normalise(saved), normalise(requested)
-        keys = [key for key in new if key in old and old[key] != new[key] and key != "sample_interval"]
+        keys = [
+            key
+            for key in new
+            if key in old and old[key] != new[key] and key not in ("sample_interval", *OPTIONAL_IDENTITY)
+        ]
+        keys += [key for key in OPTIONAL_IDENTITY if old.get(key) != new.get(key)]
         return [key for key in keys if not (resume and key == "strain")]
 
     return compare
@@ -197,7 +246,8 @@ def _check_run_folder(
             differing = _run_differences(resume)(saved, identity)
             if differing:
                 listed = ", ".join(
-                    f"{_name(f, names)} ({saved[f]!r} there, {identity[f]!r} requested)" for f in differing
+                    f"{_name(f, names)} ({saved.get(f)!r} there, {identity.get(f)!r} requested)"
+                    for f in differing
                 )
                 if resume:
                     raise RunFolderError(
@@ -228,7 +278,8 @@ def _check_run_folder(
 
 
 def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
-    """Delete the run files of ``out`` (and temporary files of :func:`sim.io.atomic_file`) but ``keep``.
+    """Delete the run files of ``out`` (and temporary files of :func:`sim.io.atomic_file`) but ``keep``
+    (the snapshot folder too, unless ``keep`` names it).
 
     Done before a run writes its ``params.json``, so that a run killed later never leaves the new
     parameters beside the results of an earlier run."""
@@ -237,6 +288,9 @@ def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
     for name in RUN_FILES:
         if name not in keep:
             (out / name).unlink(missing_ok=True)
+    snapshots = out / SNAPSHOT_FOLDER
+    if SNAPSHOT_FOLDER not in keep and snapshots.is_dir() and not snapshots.is_symlink():
+        shutil.rmtree(snapshots)
     for name in RUN_FILES:
         for tmp in out.glob(f".{name}.*{io.TEMPORARY_SUFFIX}"):
             tmp.unlink(missing_ok=True)
@@ -249,13 +303,18 @@ def _differing_parameters(saved: SimulationConfig, requested: SimulationConfig) 
 
 
 def _load_resumable(
-    checkpoint: Path, config: SimulationConfig, names: Mapping[str, str] | None, how: str | None = None
+    checkpoint: Path,
+    config: SimulationConfig,
+    names: Mapping[str, str] | None,
+    how: str | None = None,
+    origin: float = 0.0,
 ) -> tuple[SimulationState, StepRecords, float]:
     """State, records and wall time of ``checkpoint`` if ``config`` may continue it, else ``ValueError``
     (``FileNotFoundError`` when there is none); messages start with ``how`` (default: the resume flag).
 
     Only ``strain`` may differ from the checkpoint's parameters (extending a run), and the checkpoint
-    may not hold a step that a run to ``config.strain`` would not take (one starting at or after it).
+    may not hold a step that a run to ``config.strain`` would not take (one starting at or after it; the
+    run started at the clock ``origin``: 0, or the clock of the configuration it started from).
     """
     resume = how or _name("resume", names)
     if not (checkpoint.exists() or checkpoint.is_symlink()):
@@ -273,7 +332,8 @@ def _load_resumable(
             f"{listed}; only {_name('strain', names)} may differ (to extend a run)"
         )
     last_start = float(records.time[-1]) if records.time.size else -math.inf
-    if last_start >= stop_time(config.duration, config.time_step):  # a run to config.strain stops before it
+    if last_start >= stop_time(origin + config.duration, config.time_step):  # a run to config.strain stops
+        last_start -= origin
         if config.shear_rate > 0.0:
             last_start *= config.shear_rate  # as a strain, like the flags
         strain = _name("strain", names)
@@ -325,6 +385,98 @@ def _progress_bar(config: SimulationConfig, strain: float) -> Any:
     )
 
 
+def _check_every(
+    value: float | None, parameter: str, config: SimulationConfig, names: Mapping[str, str] | None
+) -> None:
+    """Refuse a spacing of snapshots or frames that is not a finite number > 0, or that plans more than
+    :data:`MAX_KEPT_STATES` of them."""
+    if value is None:
+        return
+    unit = "time (a/U0)" if config.quiescent else "strain"
+    flag = _name(parameter, names)
+    smallest = config.strain / MAX_KEPT_STATES
+    if not (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and value > 0.0
+    ):
+        raise ValueError(f"{flag} must be a {unit} > 0 (finite), got {value!r}")
+    if value < smallest:
+        raise ValueError(
+            f"{flag}={value:g} would keep more than {MAX_KEPT_STATES} states over "
+            f"{_name('strain', names)}={config.strain:g}: {flag} must be in [{smallest:.3g}, inf) ({unit})"
+        )
+
+
+def _initial_state(
+    state: SimulationState | InitialState | str | Path | None,
+    config: SimulationConfig,
+    names: Mapping[str, str] | None,
+) -> InitialState | None:
+    """The configuration a run starts from (:mod:`sim.runs.initial_state`), checked against ``config``."""
+    if state is None:
+        return None
+    if isinstance(state, SimulationState):
+        initial = InitialState.from_state(state)
+    elif isinstance(state, InitialState):
+        initial = state
+    elif isinstance(state, str | Path):
+        initial = read_initial_state(state, names)
+    else:
+        raise ValueError(
+            f"{_name('state', names)} must be a SimulationState, an InitialState or a file, got "
+            f"{type(state).__name__}"
+        )
+    check_initial_state(initial, config, names)
+    return initial
+
+
+@dataclasses.dataclass
+class _Recorders:
+    """What a run keeps besides its records and observables: its snapshots and its trajectory frames.
+
+    Attributes:
+        snapshots: writes ``snapshots/strain_XXXX.npz`` (None: no ``snapshot_every``).
+        trajectory: collects the frames of ``trajectory.gsd`` (None: no ``trajectory_every``).
+        final_checkpoint: set once the checkpoint of the state before the run's last (shortened) step
+            has been written; the results then leave it as it is.
+    """
+
+    snapshots: SnapshotWriter | None = None
+    trajectory: TrajectoryWriter | None = None
+    final_checkpoint: bool = False
+
+    @property
+    def next_clock(self) -> float:
+        """The clock of the next snapshot or frame (inf: none)."""
+        clocks = [w.next_clock for w in (self.snapshots, self.trajectory) if w is not None]
+        return min(clocks, default=math.inf)
+
+    def record(self, state: SimulationState) -> None:
+        """Keep ``state`` as a snapshot and as a frame where it has reached their next multiple."""
+        if self.snapshots is not None:
+            self.snapshots.write_if_due(state)
+        if self.trajectory is not None:
+            self.trajectory.add_if_due(state)
+
+    def flush(self) -> None:
+        """Write the pending frames (before a checkpoint that counts them)."""
+        if self.trajectory is not None:
+            self.trajectory.flush()
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """What the checkpoint holds of them: the frames written (``trajectory_frames``)."""
+        if self.trajectory is None:
+            return {}
+        return {TRAJECTORY_FRAMES: np.array(self.trajectory.frames, dtype=np.int64)}
+
+
+TRAJECTORY_FRAMES = "trajectory_frames"
+"""The checkpoint's count of the frames ``trajectory.gsd`` held when it was written (with the observables'
+arrays, :data:`sim.io.OBSERVABLE_PREFIX`)."""
+
+
 def run_simulation(
     config: SimulationConfig,
     out_dir: str | Path,
@@ -334,6 +486,9 @@ def run_simulation(
     parameter_names: Mapping[str, str] | None = None,
     sample_interval: float = DEFAULT_SAMPLE_INTERVAL,
     overwrite: bool = False,
+    state: SimulationState | InitialState | str | Path | None = None,
+    snapshot_every: float | None = None,
+    trajectory_every: float | None = None,
 ) -> dict[str, Any]:
     """Run (or continue) a simulation, writing its files to ``out_dir``; return the result dictionary.
 
@@ -346,8 +501,12 @@ def run_simulation(
     parameters, another command's folder and a non-empty folder without a manifest are refused. The
     checkpoint a run continues from is validated first (a damaged one is named with what is wrong).
     Before ``params.json`` is written, the files of the earlier run that the new one will rewrite are
-    deleted (when continuing, all but the checkpoint), so an interrupted run never leaves stale results
-    beside its parameters.
+    deleted (when continuing, all but the checkpoint, the snapshots and the trajectory), so an
+    interrupted run never leaves stale results beside its parameters.
+
+    The run ends at ``config.strain`` (after its start) exactly: its last step is shortened to land there
+    (module docstring). The checkpoint it leaves holds the state before that step, so that a longer
+    ``strain`` continues as the longer run does.
 
     Args:
         config: the run's parameters; ``strain`` must be > 0 and leave a sample after the transient.
@@ -360,10 +519,25 @@ def run_simulation(
         overwrite: delete the run in ``out_dir`` (every file of the folder, whichever command made it) and
             start afresh.
         command: the command line, recorded in ``params.json``.
-        parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``);
-            the command line passes its flags. Field names by default.
+        parameter_names: how error messages name parameters (config fields, ``out_dir``, ``resume``,
+            ``state``, ``snapshot_every``, ``trajectory_every``); the command line passes its flags. Field
+            names by default.
         sample_interval: clock interval between observable samples (g(r), x–y projection, displacement
             for the MSD), > 0; a resumed run must use its checkpoint's.
+        state: start from this configuration instead of a random packing (:mod:`sim.runs.initial_state`):
+            a file (a run's ``checkpoint.npz``, ``final_state.npz`` or snapshot, a GSD file or
+            ``FILE.gsd:K``), an :class:`~sim.runs.initial_state.InitialState` or a
+            :class:`~sim.SimulationState`. Its positions (wrapped into the box,
+            :meth:`sim.Simulation.enter`), clock and strain are taken; its field and shear rate are
+            ``config``'s, its AB2 history, step count and displacement start afresh. Its particle count
+            must be ``config.n_particles`` and its box (when a file says it) ``config.box_length``.
+            The run lasts ``config.strain`` from there, and its transient is counted from there. Its
+            digest is part of the folder's identity, and a rerun (or ``resume``) gives it again.
+        snapshot_every: keep the state at every multiple of this strain (time when quiescent) after the
+            start in ``snapshots/`` (:mod:`sim.runs.snapshots`); finite, > 0, at most
+            :data:`MAX_KEPT_STATES` of them. None: no snapshots.
+        trajectory_every: write a frame at every multiple of this strain (time when quiescent) from the
+            start into ``trajectory.gsd`` (:mod:`sim.runs.trajectory`); same range. None: no trajectory.
 
     Returns:
         The contents of ``result.json``: ``relative_viscosity``, ``relative_viscosity_stderr``, ``n1``,
@@ -377,13 +551,18 @@ def run_simulation(
         ``diffusivity_fit_window`` ``[start, end]`` (lags of the fit), ``diffusivity_note``,
         ``msd_samples``, ``pair_distribution_samples``, ``observables_sample_interval``,
         ``observables_from_strain`` and ``observables_note`` (see :meth:`RunObservables.results`); the
-        arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`).
+        arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`). A run from a given
+        configuration adds ``initial_state`` (``source``, ``digest``, ``time``, ``strain``), a run with a
+        trajectory ``trajectory_frames``.
 
     Raises:
         ValueError: bad input (the message names the parameter); :class:`sim.runs.folder.RunFolderError`
         (a ``ValueError``) for a folder this run may not use, ``resume`` without a run to continue, or
         ``resume`` with ``overwrite``; :class:`sim.io.CheckpointError` (a ``ValueError``) for a damaged
-        checkpoint; NotImplementedError: a configuration the simulator does not support yet;
+        checkpoint; :class:`sim.runs.initial_state.InitialStateError` (a ``ValueError``) for a
+        configuration that cannot be read or does not fit ``config``;
+        :class:`sim.runs.trajectory.TrajectoryError` (a ``ValueError``) for a trajectory that cannot be
+        continued; NotImplementedError: a configuration the simulator does not support yet;
         SimulationError: a step failed.
     """
     names = parameter_names
@@ -398,29 +577,51 @@ def run_simulation(
         and sample_interval > 0.0
     ):
         raise ValueError(f"{_name('sample_interval', names)} must be finite and > 0, got {sample_interval!r}")
+    _check_every(snapshot_every, "snapshot_every", config, names)
+    _check_every(trajectory_every, "trajectory_every", config, names)
+    initial = _initial_state(state, config, names)
     _check_output_directory(out, names)
-    identity = run_identity(config, sample_interval)
+    identity = run_identity(
+        config,
+        sample_interval,
+        None if initial is None else initial.digest,
+        snapshot_every,
+        trajectory_every,
+    )
     found, legacy = _check_run_folder(out, identity, resume, overwrite, names)
+    origin_clock = 0.0 if initial is None else float(initial.time)
+    origin_length = 0.0 if initial is None else float(initial.time if config.quiescent else initial.strain)
     checkpoint = out / "checkpoint.npz"
-    state: SimulationState | None = None
+    start_state: SimulationState | None = None if initial is None else initial.starting_state(config)
     records: StepRecords | None = None
     wall_before = 0.0
     saved_observables: dict[str, np.ndarray] = {}
     continuing = found in ("same", "adopted") and (checkpoint.exists() or checkpoint.is_symlink())
+    out_flag, overwrite_flag = _name("out_dir", names), _name("overwrite", names)
+    fix = f"; give {overwrite_flag} to delete that run and start afresh"
+    frames = 0
     if continuing:
-        out_flag, overwrite_flag = _name("out_dir", names), _name("overwrite", names)
         how = _name("resume", names) if resume else f"{out_flag} {out} holds this run (to continue)"
-        fix = f"; give {overwrite_flag} to delete that run and start afresh"
         try:
-            state, records, wall_before = _load_resumable(checkpoint, config, names, how)
+            start_state, records, wall_before = _load_resumable(checkpoint, config, names, how, origin_clock)
             saved_observables = io.load_checkpoint_observables(checkpoint)
         except io.CheckpointError as exc:  # a damaged checkpoint, named with what is wrong
             message = str(exc) if str(exc).startswith(how) else f"{how}: {exc}"
             raise io.CheckpointError(message + fix) from None
-    observables = RunObservables.for_run(config, float(sample_interval), records, saved_observables, names)
+        frames = int(saved_observables.pop(TRAJECTORY_FRAMES, 0))
+        if trajectory_every is not None:
+            try:
+                TrajectoryWriter.check_resumable(
+                    out / TRAJECTORY, config.box_length, frames, config.n_particles
+                )
+            except (TrajectoryError, FileNotFoundError) as exc:
+                raise TrajectoryError(f"{how}: {exc}{fix}") from None
+    observables = RunObservables.for_run(
+        config, float(sample_interval), records, saved_observables, names, origin_clock
+    )
     if progress is not False and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
-    sim = Simulation(config, state)
+    sim = Simulation(config, start_state)
     if records is not None:
         sim.records = records
     claim(
@@ -432,14 +633,88 @@ def run_simulation(
         argv=command,
         legacy=legacy,
         compare=_run_differences(resume),
-        flag=_name("out_dir", names),
+        flag=out_flag,
         resume_flag=_name("resume", names),
-        overwrite_flag=_name("overwrite", names),
+        overwrite_flag=overwrite_flag,
     )
-    _remove_outputs(out, keep=("checkpoint.npz",) if continuing else ())
-    io.write_params(out, config, command)
-    wall = _advance_with_checkpoints(sim, checkpoint, wall_before, progress, observables)
-    return _write_results(sim, out, checkpoint, wall, observables)
+    _remove_outputs(
+        out, keep=("checkpoint.npz", TRAJECTORY, SNAPSHOT_FOLDER) if continuing else ()
+    )
+    extra: dict[str, Any] = {}
+    if initial is not None:
+        extra["initial_state"] = _initial_state_entry(initial)
+    if snapshot_every is not None:
+        extra["snapshot_every"] = float(snapshot_every)
+    if trajectory_every is not None:
+        extra["trajectory_every"] = float(trajectory_every)
+    io.write_params(out, config, command, extra)
+    resumed_at = sim.state.time if continuing else None
+    recorders = _Recorders()
+    if snapshot_every is not None:
+        recorders.snapshots = SnapshotWriter(
+            out / SNAPSHOT_FOLDER,
+            config,
+            StrainMultiples.for_run(
+                snapshot_every, origin_clock, origin_length, config.shear_rate, config.time_step,
+                clock=resumed_at, include_start=False,
+            ),
+        )
+    if trajectory_every is not None:
+        recorders.trajectory = TrajectoryWriter.resume(
+            out / TRAJECTORY,
+            config.box_length,
+            StrainMultiples.for_run(
+                trajectory_every, origin_clock, origin_length, config.shear_rate, config.time_step,
+                clock=resumed_at, include_start=True,
+            ),
+            frames,
+            config.n_particles,
+        )
+    wall = _advance_with_checkpoints(
+        sim, checkpoint, wall_before, progress, observables, recorders, origin_clock, origin_length
+    )
+    return _write_results(
+        sim, out, checkpoint, wall, observables, recorders, initial, origin_clock, origin_length
+    )
+
+
+def _initial_state_entry(initial: InitialState) -> dict[str, Any]:
+    """What ``params.json`` and ``result.json`` say of the configuration a run started from."""
+    return {
+        "source": initial.source,
+        "digest": initial.digest,
+        "time": initial.time,
+        "strain": initial.strain,
+    }
+
+
+def _step_at_most_to(sim: Simulation, end_time: float) -> None:
+    """One step of ``sim`` that does not pass ``end_time``: the step the simulation would take, or, where
+    that one could pass ``end_time``, one capped to land on it.
+
+    The cap goes where the step size is chosen (:func:`sim.stepper.choose_time_step`): the largest step
+    ``time_step`` (and the floor ``min_time_step``, for a remainder below it) becomes ``end_time - clock``
+    for this one step. The result is ``min`` of the same numbers, so a step that does not reach
+    ``end_time`` is the uncapped step bit for bit; the position update is the variable-step AB2 with the
+    shortened step's ratio to the one before (:func:`sim.integrators.variable_step_adams_bashforth`). When
+    even a whole ``time_step`` ends within the slack of :func:`sim.stepper.stop_time` of ``end_time``
+    (``1e-9`` of a step: a run of a whole number of steps, whose remainder is the last step less the
+    clock's round-off) no cap is set, so such a run takes its last step unchanged, bit for bit. The
+    compiled kernels are untouched (only a run-constant parameter of this one call differs).
+    """
+    params = sim._params
+    remaining = end_time - sim.state.time
+    if remaining + 1e-9 * params.max_time_step >= params.max_time_step:
+        sim.advance(1)
+        return
+    sim._params = params._replace(
+        max_time_step=min(params.max_time_step, remaining),
+        min_time_step=min(params.min_time_step, remaining),
+    )
+    try:
+        sim.advance(1)
+    finally:
+        sim._params = params
 
 
 @contextlib.contextmanager
@@ -476,28 +751,57 @@ def _advance_with_checkpoints(
     wall_before: float,
     progress: bool | None,
     observables: RunObservables,
+    recorders: _Recorders | None = None,
+    origin_clock: float = 0.0,
+    origin_length: float = 0.0,
 ) -> float:
-    """Step ``sim`` to its configured strain, sampling ``observables`` at their clock times and
-    checkpointing every ``checkpoint_every``; return wall time.
+    """Step ``sim`` to its configured strain after its start (at the clock ``origin_clock`` and the length
+    coordinate ``origin_length``: strain, or time when quiescent), sampling ``observables`` at their
+    clock times, keeping snapshots and frames (``recorders``) at their multiples and checkpointing every
+    ``checkpoint_every``; return wall time.
 
-    The step loop is stopped at every sample time (:meth:`Simulation.advance_to`; stopping never changes
-    the trajectory), and a sample due at the end of a chunk is taken before that chunk's checkpoint, so a
-    checkpoint always holds the accumulators of its state. Ctrl-C is deferred to the end of the current
-    chunk (:func:`_deferred_interrupt`), where a checkpoint is written and ``KeyboardInterrupt`` raised.
-    The progress bar appears after the first chunk of steps, so that its clock (and its estimate of the
-    time left) does not include compiling the kernels.
+    The step loop is stopped at every sample time and every multiple (:meth:`Simulation.advance_to`;
+    stopping never changes the trajectory), and what is due at the end of a chunk is taken before that
+    chunk's checkpoint, so a checkpoint always holds the accumulators of its state (and counts the
+    frames written with it). Up to one largest step before the end the steps are the simulation's own;
+    from there one step at a time, each capped at the time left (:func:`_step_at_most_to`), so that the
+    last one lands on the end. Before that last step's state is sampled, the checkpoint of the state
+    before it is written (and ``recorders.final_checkpoint`` set): extending the run continues from there
+    as a longer run would. Ctrl-C is deferred to the end of the current chunk (:func:`_deferred_interrupt`),
+    where a checkpoint is written and ``KeyboardInterrupt`` raised. The progress bar appears after the
+    first chunk of steps, so that its clock (and its estimate of the time left) does not include compiling
+    the kernels.
     """
     config = sim.config
+    recorders = _Recorders() if recorders is None else recorders
     start = time.perf_counter()
     show = sys.stderr.isatty() if progress is None else progress
     bar = None
     next_checkpoint = (
         math.floor(sim.state.time / config.checkpoint_every + 1e-9) + 1
     ) * config.checkpoint_every
+    end = origin_clock + config.duration
+    last_full = end - config.time_step  # steps that start before it cannot pass the end
 
     def run_length(s: Simulation) -> float:
         """How far the run has come, in the unit of ``config.strain`` (strain; time when quiescent)."""
-        return min(s.state.strain if config.shear_rate > 0.0 else s.state.time, config.strain)
+        length = s.state.strain if config.shear_rate > 0.0 else s.state.time
+        return min(length - origin_length, config.strain)
+
+    def save(state: SimulationState, records: StepRecords) -> None:
+        recorders.flush()
+        io.save_checkpoint(
+            checkpoint,
+            config,
+            state,
+            records,
+            wall_before + time.perf_counter() - start,
+            {**observables.arrays(), **recorders.arrays()},
+        )
+
+    def keep(s: Simulation) -> None:
+        observables.sample_if_due(s)
+        recorders.record(s.state)
 
     def on_chunk(s: Simulation) -> None:
         nonlocal next_checkpoint, bar
@@ -506,29 +810,34 @@ def _advance_with_checkpoints(
         elif bar is not None:
             bar.n = round(run_length(s), 6)
             bar.refresh()
-        observables.sample_if_due(s)
+        keep(s)
         stop = interrupted()
         if s.state.time >= next_checkpoint - 1e-9 or stop:
-            io.save_checkpoint(
-                checkpoint,
-                config,
-                s.state,
-                s.records,
-                wall_before + time.perf_counter() - start,
-                observables.arrays(),
-            )
+            save(s.state, s.records)
             if not stop:
                 next_checkpoint += config.checkpoint_every
         if stop:  # Ctrl-C: stop here, at the end of a chunk, with the checkpoint just written
             raise KeyboardInterrupt
 
-    end = stop_time(config.duration, config.time_step)
     try:
         with _deferred_interrupt() as interrupted:
-            observables.sample_if_due(sim)  # a sample due at the starting state (t_0 with no transient)
-            while sim.state.time < end:
-                target = min(observables.next_sample_time, config.duration)
+            keep(sim)  # what is due at the starting state (t_0 with no transient, the first frame)
+            while sim.state.time < stop_time(last_full, config.time_step):
+                target = min(observables.next_sample_time, recorders.next_clock, last_full)
                 sim.advance_to(target, chunk_steps=100, on_chunk=on_chunk)
+            while sim.state.time < stop_time(end, config.time_step):
+                before = sim.snapshot()
+                _step_at_most_to(sim, end)
+                if sim.state.time < stop_time(end, config.time_step):
+                    on_chunk(sim)
+                    continue
+                records = sim.records
+                save(before, records.select(np.arange(records.time.size) < records.time.size - 1))
+                recorders.final_checkpoint = True
+                keep(sim)
+                if bar is not None:
+                    bar.n = round(run_length(sim), 6)
+                    bar.refresh()
     finally:
         if bar is not None:
             bar.close()
@@ -536,16 +845,34 @@ def _advance_with_checkpoints(
 
 
 def _write_results(
-    sim: Simulation, out: Path, checkpoint: Path, wall: float, observables: RunObservables
+    sim: Simulation,
+    out: Path,
+    checkpoint: Path,
+    wall: float,
+    observables: RunObservables,
+    recorders: _Recorders | None = None,
+    initial: InitialState | None = None,
+    origin_clock: float = 0.0,
+    origin_length: float = 0.0,
 ) -> dict[str, Any]:
-    """Write the checkpoint, final state, time series, observables, ``result.json`` and plot; return the
-    result."""
+    """Write the last frames, the checkpoint (unless the one before the last step is there already),
+    final state, time series, observables, ``result.json`` and plot; return the result."""
     config = sim.config
-    io.save_checkpoint(checkpoint, config, sim.state, sim.records, wall, observables.arrays())
+    recorders = _Recorders() if recorders is None else recorders
+    recorders.flush()
+    if not recorders.final_checkpoint:  # a run that took no step (continued at its end)
+        io.save_checkpoint(
+            checkpoint,
+            config,
+            sim.state,
+            sim.records,
+            wall,
+            {**observables.arrays(), **recorders.arrays()},
+        )
     io.save_final_state(out / "final_state.npz", config, sim.state)
     io.write_timeseries(out / "timeseries.csv", sim.records)
     observables.write(out)
-    rheo = sim.rheology()
+    rheo = sim.rheology(from_time=origin_clock + config.transient_time)
     records = sim.records
     result: dict[str, Any] = {
         "relative_viscosity": rheo.relative_viscosity,
@@ -571,7 +898,7 @@ def _write_results(
         "seed": config.seed,
         "min_gap": float(records.min_gap.min()) if records.min_gap.size else math.nan,
         "wall_seconds": wall,
-        "averaged_from_strain": config.transient,
+        "averaged_from_strain": origin_length + config.transient,
         "averaged_samples": rheo.samples,
         "mean_solver_iterations": float(records.solver_iterations.mean()) if records.strain.size else 0.0,
         "max_solver_iterations": int(records.solver_iterations.max()) if records.strain.size else 0,
@@ -589,6 +916,10 @@ def _write_results(
         },
         **observables.results(config),
     }
+    if initial is not None:
+        result["initial_state"] = _initial_state_entry(initial)
+    if recorders.trajectory is not None:
+        result["trajectory_frames"] = recorders.trajectory.frames
     io.write_json(out / "result.json", result)
     plot_rheology(
         records,
