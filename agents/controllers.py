@@ -5,7 +5,7 @@
         [--tune-episodes N] [--repeats K] [--tune-repeats K] [--schedules FILE] [--tune-schedules FILE]
         [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS] [--resume | --overwrite]
 
-Three controllers, each a policy ``obs -> action`` over the raw observation of a
+Four controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
 not matter):
 
@@ -20,6 +20,12 @@ not matter):
   ``e_k = log10(y_k / y*)``, ``u_k = u_0 + K_p e_k + K_i sum_{j<=k} e_j`` with the integral frozen while
   ``u`` is saturated in the direction of the error (anti-windup; Åström & Murray, *Feedback Systems*,
   2008, §10.4).
+
+* :class:`agents.mpc.MPCController` ("mpc"): model-predictive control through the surrogate model
+  (:mod:`agents.mpc`): each interval the best of sampled action sequences over a horizon, scored by the
+  env's reward on the surrogate's rollouts, the first action applied. It reads the frame's ``eta_r``,
+  normal stresses and microstructure (``ThickeningControl``, not the stress-only env) and the episode's
+  rate schedule.
 
 * :class:`RatePulseController` ("pulse"): a hand-built version of what the trained PPO policies do
   (``results/thickening_control/v2/README.md``): at observed rates at or above ``rate_on`` the field
@@ -107,18 +113,20 @@ from agents.usage import (
 
 PROG = "python -m agents.controllers"
 
-CONTROLLERS = ("feedforward", "pi", "pulse")
+CONTROLLERS = ("feedforward", "pi", "pulse", "mpc")
 
 DEFAULT_GRIDS: dict[str, dict[str, list[float]]] = {
     "feedforward": {"mason_star": [0.25, 0.5, 1.0, 2.0, 4.0]},
     "pi": {"kp": [2.0, 6.0], "ki": [0.5, 2.0]},
     "pulse": {"rate_on": [1.5, 2.5], "mason_steady": [0.5, 1.0]},
+    "mpc": {"horizon": [4.0, 8.0], "candidates": [64.0], "iterations": [2.0], "samples": [4.0], "seed": [0]},
 }
 """Grids searched on the validation split when ``--grid`` is not given. ``mason_star`` spans the paper's
 thickening window (Mn 0.25–4, Fig. 3b). The pulse's ``rate_on`` brackets the rate 2 above which the
 trained PPO policies pulse (``results/thickening_control/v2/README.md``), ``mason_steady`` the best
 constant field (0.5) and the feed-forward's tuned ``Mn*`` (1). The PI gains are in action units per
-decade of error; its setpoints default to :data:`DEFAULT_SETPOINT_FRACTIONS` of the env's cap."""
+decade of error; its setpoints default to :data:`DEFAULT_SETPOINT_FRACTIONS` of the env's cap. The model-
+predictive controller (:mod:`agents.mpc`) tunes its horizon (intervals)."""
 
 DEFAULT_SETPOINT_FRACTIONS = (0.7, 0.85, 1.0)
 """Default PI setpoints as fractions of the env's ``eta_cap`` (the cap depends on the box: 6.5 at N = 64,
@@ -279,11 +287,14 @@ class RatePulseController:
         return np.array([mapping.action_for(mason)], dtype=np.float32)
 
 
-def make_controller(
-    kind: str, params: dict[str, float]
-) -> FeedForwardController | PIController | RatePulseController:
-    """A controller of ``kind`` (one of :data:`CONTROLLERS`) with ``params``; ``ValueError`` naming a bad
-    kind or parameter."""
+def make_controller(kind: str, params: dict[str, float]) -> Any:
+    """A controller of ``kind`` (one of :data:`CONTROLLERS`; ``"mpc"``: :class:`agents.mpc.MPCController`)
+    with ``params``; ``ValueError`` naming a bad kind or parameter."""
+    if kind == "mpc":
+        from agents.mpc import MPCController
+
+        settings: dict[str, Any] = dict(params)  # the grid's floats; MPCController checks them
+        return MPCController(**settings)
     if kind == "feedforward":
         return FeedForwardController(**params)
     if kind == "pi":
@@ -531,7 +542,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         if not 1 <= n <= sizes[split]:
             usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
         counts[split, option] = n
-    key = unwrapped.library().key
+    library = getattr(unwrapped, "library", None)  # a surrogate env has no start-state library
+    key = library().key if callable(library) else None
     reward = unwrapped.reward_function
     # A controller's trajectories do not depend on the energy weight: the identity holds the physics, the
     # cap (the episode metrics are measured against it) and the failure penalty (a stored failed step
@@ -583,8 +595,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         (args.out / folder).mkdir(parents=True, exist_ok=True)
     compile_notice(args.scheduler)
     fixed = {split for (split, option) in counts if files[option] is None}
-    if fixed:
-        unwrapped.library().ensure(sorted(fixed), progress=True)
+    if fixed and callable(library):
+        library().ensure(sorted(fixed), progress=True)
     for (_, option), n in counts.items():
         given = files[option]
         if given is not None:

@@ -3,7 +3,7 @@
     python -m agents.train --env dipenv/FieldMagnitude-v0 --algo ppo --seed 0 --out runs/ppo/seed0
     python -m agents.train --env dipenv/FieldMagnitude-v0 --algo ppo --seeds 0-4 --out runs/ppo [--workers 1]
         [--scheduler tcp://host:8786] [--timesteps N] [--n-envs N] [--hyperparams key=value ...]
-        [--env-kwargs JSON] [--no-progress] [--resume | --overwrite]
+        [--env-kwargs JSON] [--init-from RUN_OR_MODEL] [--no-progress] [--resume | --overwrite]
 
 Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (RL Zoo layout, one entry per env id),
 overridden by ``--hyperparams``. Training runs ``n_envs`` environments in a ``SubprocVecEnv`` (a
@@ -24,16 +24,21 @@ that step and exits 143 without a result, so the rerun loses nothing but the epi
 With ``--seeds`` each seed is a task in ``OUT/seed<k>`` on the local pool (``--workers``) or a Dask
 cluster (``--scheduler``).
 
+``--init-from RUN_OR_MODEL`` starts each run from a trained policy (a model file, a run folder, or a
+``--seeds`` study folder whose ``seed<k>`` starts seed ``k``) and its ``VecNormalize`` statistics, which
+keep updating, with the target env's hyperparameters; the spaces must match; the source joins the run's
+identity (:mod:`agents.init_from`).
+
 Output folders follow the run-folder protocol (:mod:`agents.folders`): ``OUT`` (and with ``--seeds`` each
 ``OUT/seed<k>``) is claimed before anything is trained, with the identity env id, env arguments, algorithm,
-the resolved hyperparameters and (a run folder) the seed; ``--seeds`` folders leave the seeds out, so that
-more seeds join a study. A rerun of the same identity continues; a larger ``n_timesteps`` (``--timesteps``)
-continues a run from its last checkpoint, a smaller one is refused (the folder holds a longer run); a
-folder of another command or of other parameters is refused (exit 2) unless ``--overwrite`` deletes the
-whole previous run (with ``--seeds``: every seed in ``OUT``). A run folder made before manifests (it holds
-``config.yml`` or ``model.zip``; a ``--seeds`` folder: ``seed*/config.yml``) is adopted after its
-``config.yml`` is checked. Every hyperparameter is checked, and the model built once, before the folder is
-claimed.
+the resolved hyperparameters, (a run folder) the seed and (with ``--init-from``) the source; ``--seeds``
+folders leave the seeds out, so that more seeds join a study. A rerun of the same identity continues; a
+larger ``n_timesteps`` (``--timesteps``) continues a run from its last checkpoint, a smaller one is
+refused (the folder holds a longer run); a folder of another command or of other parameters is refused
+(exit 2) unless ``--overwrite`` deletes the whole previous run (with ``--seeds``: every seed in
+``OUT``). A run folder made before manifests (it holds ``config.yml`` or ``model.zip``; a ``--seeds``
+folder: ``seed*/config.yml``) is adopted after its ``config.yml`` is checked. Every hyperparameter is
+checked, and the model built once, before the folder is claimed.
 """
 
 from __future__ import annotations
@@ -44,6 +49,7 @@ import functools
 import json
 import math
 import multiprocessing as mp
+import os
 import re
 import signal
 import sys
@@ -64,6 +70,13 @@ from agents.folders import (
     normalise,
     read_evaluation_log,
     write_text_atomic,
+)
+from agents.init_from import (
+    layout,
+    load_policy,
+    resolve_sources,
+    resolved,
+    source_problem,
 )
 from agents.tasks import run_tasks
 from agents.usage import (
@@ -347,9 +360,11 @@ def run_identity(
     algo: str,
     seed: int,
     hp: dict[str, Any],
+    init_from: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """What ``config.yml`` records of a run and a rerun must match (``settings``: the env's resolved
-    defaults, so a changed env default is a different run)."""
+    defaults, so a changed env default is a different run; ``init_from``: the source of a fine-tuned run,
+    :meth:`agents.init_from.InitSource.identity`, None for a run from scratch)."""
     return {
         "env_id": env_id,
         "env_kwargs": env_kwargs,
@@ -357,6 +372,7 @@ def run_identity(
         "algo": algo,
         "seed": seed,
         "hyperparams": hp,
+        "init_from": init_from,
     }
 
 
@@ -376,6 +392,7 @@ def run_conflict(out: Path, identity: dict[str, Any]) -> str | None:
 
     def comparable(record: dict[str, Any]) -> dict[str, Any]:
         kept = {k: record.get(k) for k in identity}
+        kept["init_from"] = resolved(record.get("init_from"))  # a path spelled otherwise is the same source
         hyperparams = {k: v for k, v in (record.get("hyperparams") or {}).items() if k != "n_timesteps"}
         policy_kwargs = hyperparams.get("policy_kwargs")
         if isinstance(policy_kwargs, dict) and policy_kwargs.get("use_sde") is False:
@@ -416,11 +433,17 @@ RUN_LEGACY = ("config.yml", "model.zip")
 
 
 def manifest_identity(
-    env_id: str, env_kwargs: dict[str, Any], algo: str, hp: dict[str, Any], seed: int | None
+    env_id: str,
+    env_kwargs: dict[str, Any],
+    algo: str,
+    hp: dict[str, Any],
+    seed: int | None,
+    init_from: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The identity in a training folder's manifest: a run folder's (``seed`` an integer) or a ``--seeds``
     folder's (``seed`` None: the seeds are not part of it, so that a study takes more of them); the
-    hyperparameters by name."""
+    hyperparameters by name; ``init_from`` (only where given): a fine-tuned run's source (a run folder:
+    :meth:`agents.init_from.InitSource.identity`; a ``--seeds`` folder: the source's path and layout)."""
     identity: dict[str, Any] = {
         "env_id": env_id,
         "env_kwargs": env_kwargs,
@@ -429,6 +452,8 @@ def manifest_identity(
     }
     if seed is not None:
         identity["seed"] = seed
+    if init_from is not None:
+        identity["init_from"] = init_from
     clash = sorted(set(identity) & set(hp))
     if clash:  # not a hyperparameter name (check_hyperparameters refuses unknown keys)
         raise ValueError(f"hyperparameters named like identity keys: {clash}")
@@ -439,6 +464,9 @@ def compare_identities(saved: Mapping[str, Any], requested: Mapping[str, Any]) -
     """The identity keys that forbid continuing a training folder: every difference, except a larger
     ``n_timesteps`` (a longer run continues from its last checkpoint)."""
     a, b = normalise(saved), normalise(requested)
+    for side in (a, b):
+        if "init_from" in side:
+            side["init_from"] = resolved(side["init_from"])
     keys = sorted(k for k in set(a) | set(b) if a.get(k) != b.get(k))
     try:
         longer = "n_timesteps" in keys and int(b["n_timesteps"]) > int(a["n_timesteps"])
@@ -479,7 +507,8 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     progress = bool(payload.get("progress", True))
     probe = make_env(env_id, {**env_kwargs, "progress": progress})  # settings now, start states below
     settings = probe.unwrapped.settings()  # type: ignore[attr-defined]
-    identity = run_identity(env_id, env_kwargs, settings, algo, seed, hp)
+    init = payload.get("init_from")  # a fine-tuned run's source (agents.init_from), or None
+    identity = run_identity(env_id, env_kwargs, settings, algo, seed, hp, init and init["identity"])
     config_file = out / "config.yml"
     conflict = run_conflict(out, identity)
     if conflict is not None:  # main() refuses this before any task starts
@@ -549,10 +578,17 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             model.load_replay_buffer(str(buffer))
     else:
         steps_done = 0
-        env = VecNormalize(venv, gamma=gamma) if normalize else venv
+        if init is not None and normalize:
+            # the source's statistics, updated from here on (agents.init_from: "What is carried over")
+            env = VecNormalize.load(init["vecnormalize"], venv)
+            env.training, env.gamma = True, gamma
+        else:
+            env = VecNormalize(venv, gamma=gamma) if normalize else venv
         model = algo_cls(
             policy, env, seed=seed, device="cpu", tensorboard_log=str(out / "tb"), verbose=0, **hp
         )
+        if init is not None:  # the source's policy in a model of the target's hyperparameters
+            load_policy(model, init["model"])
     eval_env: Any = (
         VecNormalize(eval_venv, training=False, norm_reward=False, gamma=gamma) if normalize else eval_venv
     )
@@ -634,6 +670,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         "best_validation_return": _json_number(float(getattr(eval_cb, "best_mean_reward", math.nan))),
         "last_validation_return": _json_number(float(getattr(eval_cb, "last_mean_reward", math.nan))),
         "library_key": library_key,  # None for a surrogate env (no start-state library)
+        "init_from": init and init["identity"],
     }
     env.close()
     eval_env.close()
@@ -726,6 +763,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="Dask scheduler address, tcp://HOST:PORT (instead of local workers)",
     )
+    parser.add_argument(
+        "--init-from",
+        type=Path,
+        default=None,
+        metavar="RUN_OR_MODEL",
+        help="start from a trained policy (and its VecNormalize statistics, which keep updating): a model "
+        ".zip, a run folder, or a --seeds study folder (seed k from RUN_OR_MODEL/seed<k>); the target's "
+        "hyperparameters apply (agents.init_from)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     add_folder_options(parser)
     return parser
@@ -749,8 +795,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     probe = checked_env(PROG, args.env, env_kwargs, progress=False)  # bad values now, not after set-up
     settings = probe.unwrapped.settings()
     problem = model_problem(args.algo, probe, hp)
-    probe.close()
     if problem is not None:
+        probe.close()
         source = "--hyperparams" if overrides else f"hyperparameter file {hyperparameter_file(args.algo)}"
         usage_error(PROG, f"{source}: {args.algo} cannot be built with these hyperparameters ({problem})")
     words = command_line("agents.train", argv)
@@ -761,11 +807,31 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     else:
         seeds = [0 if args.seed is None else args.seed]
         outs = [args.out]
+    inits: list[dict[str, Any] | None] = [None] * len(seeds)
+    if args.init_from is not None:  # the source of each seed, checked against the env and hyperparameters
+        try:
+            sources = resolve_sources(args.init_from, seeds)
+        except ValueError as error:
+            probe.close()
+            usage_error(PROG, str(error))
+        for given in {given.model: given for given in sources}.values():
+            problem = source_problem(given, args.algo, probe, args.env, settings, hp)
+            if problem is not None:
+                probe.close()
+                usage_error(PROG, problem)
+        inits = [source.payload() for source in sources]
+    probe.close()
     if not args.overwrite:  # the run folders' own files (an adopted pre-manifest run, or a resumed one)
         for seed, out in zip(seeds, outs, strict=True):
+            init = inits[seeds.index(seed)]
             problem = (
                 missing_normalisation(out, hp)
-                or run_conflict(out, run_identity(args.env, env_kwargs, settings, args.algo, seed, hp))
+                or run_conflict(
+                    out,
+                    run_identity(
+                        args.env, env_kwargs, settings, args.algo, seed, hp, init and init["identity"]
+                    ),
+                )
                 or evaluation_log_problem(out)
             )
             if problem is not None:
@@ -773,19 +839,23 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     claim = functools.partial(claim_out, PROG, argv=words, compare=compare_identities)
     if args.seeds is not None:
         group = [str(p.relative_to(args.out)) for p in sorted(args.out.glob("seed*/config.yml"))]
+        study_init = None
+        if args.init_from is not None:
+            study_init = {"source": os.path.normpath(str(args.init_from)), "layout": layout(args.init_from)}
         claim(
             args.out,
             "agents.train",
-            manifest_identity(args.env, env_kwargs, args.algo, hp, None),
+            manifest_identity(args.env, env_kwargs, args.algo, hp, None, study_init),
             resume=args.resume,
             overwrite=args.overwrite,
             legacy=group,
         )
-        for seed, out in zip(seeds, outs, strict=True):
-            identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seed)
+        for seed, out, init in zip(seeds, outs, inits, strict=True):
+            identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seed, init and init["identity"])
             claim(out, "agents.train", identity, legacy=legacy_markers(out, RUN_LEGACY))
     else:
-        identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seeds[0])
+        init = inits[0]
+        identity = manifest_identity(args.env, env_kwargs, args.algo, hp, seeds[0], init and init["identity"])
         legacy = legacy_markers(args.out, RUN_LEGACY)
         claim(args.out, "agents.train", identity, resume=args.resume, overwrite=args.overwrite, legacy=legacy)
     compile_notice(args.scheduler)
@@ -796,11 +866,12 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             "algo": args.algo,
             "seed": s,
             "hyperparams": hp,
+            "init_from": init,
             "out": str(o),
             "command": command,
             "progress": not args.no_progress and len(seeds) == 1,
         }
-        for s, o in zip(seeds, outs, strict=True)
+        for s, o, init in zip(seeds, outs, inits, strict=True)
     ]
     results = run_tasks(train_run, payloads, workers=args.workers, scheduler=args.scheduler)
     for r in results:

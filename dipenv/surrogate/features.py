@@ -88,6 +88,22 @@ class IntervalTable:
     rate_initial: float
     parts: tuple[tuple[tuple[float, float], ...], ...]
 
+    def window(self, start: int, stop: int) -> IntervalTable:
+        """Intervals ``start .. stop - 1`` as a table of their own (a rollout from interval ``start``;
+        ``rate_initial`` becomes the rate in force at its start, the previous interval's last piece's)."""
+        if not 0 <= start < stop <= len(self.rate_mean):
+            raise ValueError(f"window [{start}, {stop}) outside the table's {len(self.rate_mean)} intervals")
+        initial = self.rate_initial if start == 0 else float(self.rate_end[start - 1])
+        return IntervalTable(
+            self.rate_start[start:stop],
+            self.rate_mean[start:stop],
+            self.rate_end[start:stop],
+            self.piece_rate[start:stop],
+            self.piece_time[start:stop],
+            initial,
+            self.parts[start:stop],
+        )
+
 
 def interval_table(
     schedule: sim.PiecewiseLinear, n_intervals: int, interval: float, max_piece: float

@@ -299,9 +299,12 @@ class SurrogateModel:
         tables: list[IntervalTable],
         rng: np.random.Generator,
         samples: int,
+        previous: np.ndarray | None = None,
     ) -> np.ndarray:
         """Open-loop rollouts: (E, samples, T, 12) sampled dynamic parts of E episodes from their start
-        frames (E, 12) under the fields ``masons`` (E, T)."""
+        frames (E, 12) under the fields ``masons`` (E, T), over the first T intervals of each table
+        (:meth:`IntervalTable.window` starts one mid-episode). ``previous`` (E,): the field ``Mn_ref``
+        of the interval before the first (default: off, an episode's start)."""
         raise NotImplementedError
 
     def one_step(self, dynamic: np.ndarray, masons: np.ndarray, tables: list[IntervalTable]) -> np.ndarray:
@@ -356,10 +359,15 @@ class EnsembleModel(SurrogateModel):
             for layer in range(2):
                 h = _silu(h @ self.w[layer][member] + self.b[layer][member])
             out = h @ self.w[2][member] + self.b[2][member]
-        else:
-            for layer in range(2):
-                h = _silu(np.einsum("bi,bij->bj", h, self.w[layer][member]) + self.b[layer][member])
-            out = np.einsum("bi,bij->bj", h, self.w[2][member]) + self.b[2][member]
+        else:  # one matrix product per member over its rows (gathering a weight matrix per row is slow)
+            member = np.asarray(member)
+            out = np.empty((h.shape[0], self.w[2].shape[2]))
+            for m in np.unique(member):
+                rows = member == m
+                hm = h[rows]
+                for layer in range(2):
+                    hm = _silu(hm @ self.w[layer][m] + self.b[layer][m])
+                out[rows] = hm @ self.w[2][m] + self.b[2][m]
         mean, logvar = out[..., :N_DYNAMIC], out[..., N_DYNAMIC:]
         return mean, np.exp(_softbound(logvar, self.min_logvar, self.max_logvar))
 
@@ -410,15 +418,22 @@ class EnsembleModel(SurrogateModel):
         tables: list[IntervalTable],
         rng: np.random.Generator,
         samples: int,
+        previous: np.ndarray | None = None,
     ) -> np.ndarray:
         n_ep, steps = masons.shape
         members = rng.integers(self.members, size=n_ep * samples)
         rep_masons = np.repeat(masons, samples, axis=0)
-        rep_tables = [t for t in tables for _ in range(samples)]
+        first = np.full(n_ep, np.inf) if previous is None else np.asarray(previous, dtype=np.float64)
+        before = np.concatenate([np.repeat(first, samples)[:, None], rep_masons[:, :-1]], axis=1)
+        start, mean_rate, end = (
+            np.repeat(np.stack([getattr(t, name)[:steps] for t in tables]), samples, axis=0)
+            for name in ("rate_start", "rate_mean", "rate_end")
+        )
         current = np.repeat(np.asarray(frames, dtype=np.float64), samples, axis=0)
         out = np.empty((n_ep * samples, steps, N_DYNAMIC))
         for k in range(steps):
-            mean, var = self._forward(self._inputs(current, rep_masons, rep_tables, k), members)
+            x = mlp_inputs(current, before[:, k], rep_masons[:, k], start[:, k], mean_rate[:, k], end[:, k])
+            mean, var = self._forward(x, members)
             change = mean + np.sqrt(var) * rng.standard_normal(mean.shape)
             current = np.clip(current + self.y_mean + self.y_std * change, self.low, self.high)
             out[:, k] = current
@@ -510,7 +525,14 @@ class LambdaModel(SurrogateModel):
         tables: list[IntervalTable],
         rng: np.random.Generator,
         samples: int,
+        previous: np.ndarray | None = None,
     ) -> np.ndarray:
+        if previous is not None and np.isfinite(previous).any():
+            raise ValueError(
+                "the lambda model's rollout starts at an episode's start (structure of a field-free "
+                "pre-sheared state): its structure variables are not in the frame, so it cannot start "
+                "mid-episode after a field"
+            )
         n_ep, steps = masons.shape
         phis, strains = self.deterministic(masons, tables)
         mean = self.mean_outputs(phis)  # (E, T, 12)
