@@ -22,13 +22,13 @@ with a message naming what is missing. The model must be an ensemble (the lambda
 variables are not in the frame, so its rollout cannot start mid-episode) fitted for the env's box and
 interval.
 
-**The rate schedule.** ``preview=True`` (default) reads the episode's shear-rate schedule from the env
-(the thickening envs hold it from ``reset``: ``info["schedule"]``, and the simulator follows it): the
-rollouts see the coming rates, including a jump inside the horizon. That is more than the feed-forward
-controller uses (it reads the observed rate, ``log10_shear_rate``, at the end of the previous interval);
-it is the setting of a process whose rate program is known in advance. ``preview=False`` holds the
-observed rate over the horizon (what the feed-forward knows). An env without a readable schedule gets the
-latter.
+**The rate schedule.** ``preview=False`` (default) holds the observed rate (``log10_shear_rate``, at the
+end of the previous interval) over the horizon: the controller knows what the feed-forward, the pulse
+controller and the trained policies know, so the rows compare like with like. ``preview=True`` reads the
+episode's shear-rate schedule from the env instead (the thickening envs hold it from ``reset``:
+``info["schedule"]``, and the simulator follows it), so the rollouts see the coming rates, including a jump
+inside the horizon: the setting of a process whose rate programme is known in advance, an oracle none of
+the other rows has.
 
 **Determinism.** :meth:`MPCController.reset` (called after every ``env.reset``, as
 :func:`agents.rollout.run_episode` does) reseeds the controller's generator from ``seed``; candidates and
@@ -78,7 +78,7 @@ class MPCController:
         elites: sequences kept to refit the sampling distribution, in ``[1, candidates]`` (default:
             an eighth of the candidates, at least 1).
         seed: seed of the controller's generator (reseeded at every ``reset``).
-        preview: read the episode's rate schedule from the env (else hold the observed rate).
+        preview: read the episode's rate schedule from the env (an oracle; default: hold the observed rate).
         model: path of a surrogate model ``.npz``; default: the env's own model (surrogate env), else the
             shipped one.
     """
@@ -89,7 +89,7 @@ class MPCController:
     samples: int = 4
     elites: int | None = None
     seed: int = 0
-    preview: bool = True
+    preview: bool = False
     model: str | None = None
 
     def __post_init__(self) -> None:
