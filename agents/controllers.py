@@ -91,7 +91,7 @@ from agents.folders import (
 )
 from agents.open_loop import _finite, play_missing, read_json, rescore_stored, write_json
 from agents.repeats import per_state
-from agents.rollout import make_env
+from agents.rollout import library_key, make_env
 from agents.schedules import (
     ScheduleSet,
     episode_count,
@@ -543,7 +543,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
         counts[split, option] = n
     library = getattr(unwrapped, "library", None)  # a surrogate env has no start-state library
-    key = library().key if callable(library) else None
+    key = library_key(unwrapped)
     reward = unwrapped.reward_function
     # A controller's trajectories do not depend on the energy weight: the identity holds the physics, the
     # cap (the episode metrics are measured against it) and the failure penalty (a stored failed step

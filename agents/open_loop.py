@@ -57,7 +57,7 @@ from agents.folders import (
     write_text_atomic,
 )
 from agents.repeats import episode_key, missing, per_state, select
-from agents.rollout import constant_policy, make_env, run_episode
+from agents.rollout import constant_policy, library_key, make_env, run_episode
 from agents.schedules import (
     ScheduleSet,
     episode_count,
@@ -150,7 +150,7 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     env = make_env(payload["env_id"], payload["env_kwargs"])
     unwrapped: Any = env.unwrapped
     action = constant_action(unwrapped, payload["mason_number"], payload["direction"])
-    key = unwrapped.library().key
+    key = library_key(unwrapped)
     settings = unwrapped.settings()
     # The physics (and the failure penalty, which a stored failed step keeps): the returns are rescored
     # below for the reward in use.
@@ -243,7 +243,7 @@ def rescore_stored(record: dict[str, Any], reward: Any, path: Path) -> dict[str,
     return record
 
 
-def _identity(payload: dict[str, Any], library_key: str, settings: dict[str, Any]) -> dict[str, Any]:
+def _identity(payload: dict[str, Any], library_key: str | None, settings: dict[str, Any]) -> dict[str, Any]:
     """What a point's result depends on (a stored point is reused only if this matches): the command's
     arguments and the env's resolved physical settings (``FieldControlEnv.settings`` less the reward),
     so a changed default of the env is not silently reused; with a schedules file, its digest."""
@@ -496,11 +496,12 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                 PROG, f"--mason {m:g} is outside the env's range [{mapping.mason_min}, {mapping.mason_max}]"
             )
     directions: list[str | None] = [None]
-    if not unwrapped.vector_field and args.directions is not None:
+    vector_field = bool(getattr(unwrapped, "vector_field", False))  # the surrogate envs: strength only
+    if not vector_field and args.directions is not None:
         usage_error(
             PROG, f"--directions is for the vector-field envs; --env {args.env} sets the field strength only"
         )
-    if unwrapped.vector_field:
+    if vector_field:
         directions = [d.strip() for d in (args.directions or ",".join(DIRECTIONS)).split(",")]
         for d in directions:
             if d not in DIRECTIONS:
@@ -528,7 +529,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     (args.out / "points").mkdir(parents=True, exist_ok=True)
     compile_notice(args.scheduler)
     if schedules is None:
-        unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
+        if callable(getattr(unwrapped, "library", None)):  # the surrogate envs have none
+            unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
     else:
         write_json(args.out / "schedules.json", schedules.resolved())
         prepare_states(unwrapped, schedules, episodes)

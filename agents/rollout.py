@@ -36,6 +36,13 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     return gym.make(env_id, **(env_kwargs or {}))
 
 
+def library_key(unwrapped: Any) -> str | None:
+    """The start-state library key of an unwrapped env, or None for an env without a library (the
+    surrogate envs draw their start frames from their model's data)."""
+    library = getattr(unwrapped, "library", None)
+    return library().key if callable(library) else None
+
+
 def make_monitored_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     """:func:`make_env` wrapped in SB3's ``Monitor`` (episode returns and lengths for evaluation)."""
     from stable_baselines3.common.monitor import Monitor

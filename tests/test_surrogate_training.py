@@ -40,3 +40,18 @@ def test_every_surrogate_id_has_ppo_hyperparameters() -> None:
     for env_id in dipenv.SURROGATE_IDS:
         params = train.load_hyperparams("ppo", env_id)
         assert params["n_timesteps"] == 1_000_000 and params["eval_freq"] == 50_000
+
+
+def test_open_loop_plays_constant_fields_on_the_surrogate(tmp_path) -> None:
+    """agents.open_loop on a surrogate id (no start-state library, strength only): the constant-field
+    baseline that surrogate-trained policies are compared with there; its library key is null."""
+    from agents import open_loop
+
+    out = tmp_path / "open_loop"
+    argv = ["--env", "dipenv/ThickeningControlSurrogate-v0", "--split", "validation", "--mason", "0.5,off"]
+    open_loop.main([*argv, "--episodes", "2", "--out", str(out)])
+    points = sorted((out / "points").glob("*.json"))
+    assert [p.stem for p in points] == ["Mn0.5", "off"]
+    record = json.loads(points[0].read_text())
+    assert record["identity"]["library_key"] is None
+    assert len(record["episodes"]) == 2
