@@ -1,7 +1,7 @@
 """Independent tasks (training seeds, open-loop points, evaluations) on a local pool or a Dask cluster.
 
-The engine is the simulator's (:mod:`sim.tasks`, exported by ``sim``), shared with ``python -m sim sweep``;
-this module keeps the names the agents import:
+The engine is the simulator's (:mod:`sim.runs.tasks`, exported by ``sim``), shared with
+``python -m sim sweep``; this module keeps the names the agents import:
 
 * ``workers <= 1`` and no scheduler: in this process, in order;
 * ``workers > 1``: a local ``ProcessPoolExecutor`` (spawned, non-daemonic workers, so a task may start

@@ -64,7 +64,7 @@ def integer_at_least(minimum: int) -> Callable[[str], int]:
 
 def seed_list(text: str) -> list[int]:
     """An argparse type for ``--seeds``: ``0-4`` or ``0,2,5-7`` (non-negative, at most ``MAX_SEEDS``),
-    as :func:`sim.tasks.parse_seeds` reads them; the sorted seeds."""
+    as :func:`sim.runs.tasks.parse_seeds` reads them; the sorted seeds."""
     from agents.tasks import parse_seeds
 
     try:
@@ -139,7 +139,7 @@ def compile_notice(scheduler: str | None = None) -> bool:
     """Print ``sim run``'s note ``compiling kernels (first run only, about a minute)...`` on stderr when the
     simulator's compiled kernels are not in numba's cache yet (the first episode then waits for them under
     a progress bar at 0%); returns whether it printed. Nothing for a Dask ``scheduler`` (the workers
-    compile). Needs ``sim`` to export ``COMPILE_NOTICE`` and ``compiled_kernels_cached`` (``sim.run``'s);
+    compile). Needs ``sim`` to export ``COMPILE_NOTICE`` and ``compiled_kernels_cached`` (``sim.runs.run``'s);
     without them it prints nothing."""
     import sim
 

@@ -219,7 +219,7 @@ def _non_negative(text: str) -> float:
 
 def build_parser() -> argparse.ArgumentParser:
     """Options of the benchmark (defaults shown by ``--help``)."""
-    from sim.cli import positive_int  # here: sim loads numba, which must see NUMBA_NUM_THREADS set above
+    from sim.runs.cli import positive_int  # here: sim loads numba, which must see NUMBA_NUM_THREADS set above
 
     parser = argparse.ArgumentParser(
         description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter

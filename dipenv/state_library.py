@@ -23,7 +23,7 @@ of ``sim/`` but those listed in :data:`PHYSICS_EXCLUDED`: the field's kernels, w
 pre-shear never runs, and the command line, run files, figures, sweeps and tasks, which do not touch a
 trajectory). States made by other physics therefore live under another key and are never
 reused: an edit of the dynamics regenerates the states (and the open-loop results keyed on them), an
-edit of ``sim/cli.py`` does not. ``library.json`` records these parameters; a directory whose record
+edit of ``sim/runs/cli.py`` does not. ``library.json`` records these parameters; a directory whose record
 differs from the library's (states copied from elsewhere, or a damaged record) is stale: its states are
 deleted and generated again, with a warning. Files are written atomically (temporary name, then rename),
 so concurrent workers at worst repeat work.
@@ -65,27 +65,34 @@ PHYSICS_EXCLUDED = frozenset(
         "observables/pair_distribution.py",
         "variants.py",
         "__main__.py",
-        "cli.py",
-        "figures.py",
-        "flow_curve.py",
-        "io.py",
-        "run.py",
-        "run_observables.py",
-        "sweep.py",
-        "sweep_figures.py",
-        "tasks.py",
         "runs/",
         "plots/",
     }
 )
 """Files of ``sim/`` (paths relative to it; a trailing ``/`` names a whole subpackage) that do not shape a
 start state: the pre-shear runs without a field, so the dipolophoresis kernels and their tables never run;
-the command line, a run's files and sampled observables (g(r), MSD, fabric, layering), figures and
-movies (``plots/``), run folders, snapshots, GSD trajectories and initial states (``runs/``), sweeps,
-flow curves, rate schedules and the task engine do not touch its trajectory. Everything else (the
-stepper, geometry, hydrodynamics, contacts, the stress, config, state, the numba settings) is part of
-:func:`physics_source_digest`. So a speed-up of the field's kernels keeps the start states and every
-result keyed on them."""
+sampled observables (g(r), MSD, fabric, layering), rate schedules and the application do not touch its
+trajectory: ``runs/`` (the command line, a run's files and sampled observables, run folders, snapshots,
+GSD trajectories, initial states, sweeps, flow curves and the task engine) and ``plots/`` (figures and
+movies). Everything else (the stepper, geometry, hydrodynamics, contacts, the stress, config, state, the
+numba settings) is part of :func:`physics_source_digest`. So a speed-up of the field's kernels keeps the
+start states and every result keyed on them."""
+
+DIGESTED_UNDER_FORMER_NAME = {
+    "sim.runs.cli": "sim.cli",
+    "sim.runs.run": "sim.run",
+    "sim.runs.observables": "sim.run_observables",
+    "sim.runs.sweep": "sim.sweep",
+    "sim.runs.flow_curve": "sim.flow_curve",
+    "sim.runs.tasks": "sim.tasks",
+    "sim.runs.io": "sim.io",
+    "sim.plots.figures": "sim.figures",
+    "sim.plots.sweep": "sim.sweep_figures",
+}
+"""Application modules that moved into ``runs/`` and ``plots/`` (issue 45), each with its former name.
+:func:`_normalised_source` digests an import of one under its former name, so that move alone (which
+rewrote the imports of ``sim/__init__.py``, a digested file) kept the library key and every state and
+result keyed on it. New imports change the key as any code edit does."""
 
 SPLITS = ("train", "validation", "test", "fresh")
 """Every split of the start states; ``fresh`` is held out for the final evaluation."""
@@ -115,12 +122,18 @@ def _normalised_source(path: Path) -> bytes:
     other bare string statements (comments and layout never reach the tree); for a data table, its lines
     that are not ``#`` comments. So rewording a docstring or a table's header keeps the digest. (The tree's
     printed form belongs to the Python version: another minor version may give another key, and then the
-    states are generated again, never wrongly reused.)"""
+    states are generated again, never wrongly reused.) An import of a moved application module is
+    digested under its former name (:data:`DIGESTED_UNDER_FORMER_NAME`)."""
     text = path.read_text()
     if path.suffix != ".py":
         return "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#")).encode()
     tree = ast.parse(text)
     for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module in DIGESTED_UNDER_FORMER_NAME:
+            node.module = DIGESTED_UNDER_FORMER_NAME[node.module]
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                alias.name = DIGESTED_UNDER_FORMER_NAME.get(alias.name, alias.name)
         body = getattr(node, "body", None)
         if isinstance(body, list):
             kept = [

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from agents.folders import add_folder_options, check_parent, claim_for_script, legacy_markers
 from sim import SimulationConfig
-from sim.sweep import run_sweep
+from sim.runs.sweep import run_sweep
 
 HIGH_MN = {1e-4: (5.0, 20.0, math.inf), 1e-3: (5.0, 20.0, math.inf)}
 LOW_MN = {1e-3: (1.0, 0.1)}

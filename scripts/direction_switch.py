@@ -29,8 +29,8 @@ from typing import Any
 import numpy as np
 
 import sim
-from sim.io import read_json, write_json, write_text_atomically
 from sim.runs import RunFolderError, claim
+from sim.runs.io import read_json, write_json, write_text_atomically
 
 
 def binned(

@@ -2,7 +2,7 @@
 
     python scripts/paper_grid_compare.py runs/paper_grid [--out results/paper_grid]
 
-Reads every finished point (``sim.sweep_figures.load_sweep``: means and standard errors over seeds),
+Reads every finished point (``sim.plots.sweep.load_sweep``: means and standard errors over seeds),
 writes ``values.md`` (eta_r, N1, N2, particle pressure, ``U_rms^DIP / U_rms^shear``, D_yy per phi and Mn)
 and ``comparison.md`` (each statement of docs/validation.md#published-results about sheared dipolophoresis,
 the numbers
@@ -24,7 +24,7 @@ from pathlib import Path
 
 from agents.folders import add_folder_options, report_folder, write_text_atomic
 from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, SHEAR_CONTRIBUTIONS, STRESS_CONTRIBUTIONS
-from sim.sweep_figures import Group, Series, load_sweep
+from sim.plots.sweep import Group, Series, load_sweep
 
 SCRIPT = "paper_grid_compare.py"
 FILES = ("values.md", "comparison.md")

@@ -23,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from agents.folders import add_folder_options, report_folder, save_figure, write_text_atomic  # noqa: E402
-from sim.io import read_json  # noqa: E402
+from sim.runs.io import read_json  # noqa: E402
 
 SCRIPT = "quiescent_summary.py"
 FILES = ("table.md", "quiescent.png")

@@ -57,7 +57,7 @@ from dipenv.surrogate.env import (  # noqa: E402
     surrogate_kwargs,
 )
 from dipenv.surrogate.models import default_model_path  # noqa: E402
-from sim.io import atomic_file  # noqa: E402
+from sim.runs.io import atomic_file  # noqa: E402
 
 SCHEDULE_SEED = 43_000_000
 """First schedule seed of the check's episodes (module docstring)."""

@@ -52,8 +52,8 @@ from typing import Any
 import numpy as np
 
 import sim
-from sim.io import atomic_file
 from sim.runs import RunFolderError, claim
+from sim.runs.io import atomic_file
 
 ENV_ID = "dipenv/ThickeningControl-v2"
 BEHAVIOURS = ("hold", "pulse", "constant", "follow")

@@ -1,7 +1,7 @@
-"""``python -m sim``: see :mod:`sim.cli`."""
+"""``python -m sim``: see :mod:`sim.runs.cli`."""
 
 import sys
 
-from sim.cli import main
+from sim.runs.cli import main
 
 sys.exit(main())

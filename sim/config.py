@@ -127,7 +127,7 @@ class SimulationConfig:
             :meth:`sim.Simulation.set_shear_rate` changes it during a run.
         strain: run length as accumulated strain at ``shear_rate`` (the run lasts ``strain / shear_rate``
             in time, :attr:`duration`); for a quiescent run, its length in time. >= 0 (a run through
-            :func:`sim.run.run_simulation` needs > 0).
+            :func:`sim.runs.run.run_simulation` needs > 0).
         seed: seed of the initial random packing.
         time_step: largest AB2 step in time units (``1/gammadot_ref``), in (0, 0.05]; the step adapts
             below it.
@@ -285,7 +285,7 @@ class SimulationConfig:
     @property
     def duration(self) -> float:
         """Length of the run in time (units ``1/gammadot_ref``): ``strain / shear_rate``, or ``strain`` when
-        quiescent; the clock at which a run through :func:`sim.run.run_simulation` ends."""
+        quiescent; the clock at which a run through :func:`sim.runs.run.run_simulation` ends."""
         return self.strain / self.shear_rate if self.shear_rate > 0.0 else self.strain
 
     def time_of(self, strain: float) -> float:

@@ -257,7 +257,7 @@ def evaluate(
 def stop_time(end_time: float, max_time_step: float) -> float:
     """The clock at or beyond which a run to ``end_time`` is over: ``end_time`` less ``1e-9`` of a step,
     so that rounding in the accumulated clock never adds a step. One rule for the step loop
-    (:func:`advance`), :meth:`sim.Simulation.advance_to` and the resume checks of :mod:`sim.run`."""
+    (:func:`advance`), :meth:`sim.Simulation.advance_to` and the resume checks of :mod:`sim.runs.run`."""
     return end_time - 1e-9 * max_time_step
 
 

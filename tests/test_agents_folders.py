@@ -7,7 +7,6 @@ and ``--overwrite`` deletes the whole previous run."""
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import math
 import os
@@ -16,31 +15,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from agents_helpers import ENV, ROOT, TINY, load_script, refused
 
 from agents import controllers, evaluate, open_loop, train
 from sim.runs import MANIFEST, claim, read_manifest
 
-ROOT = Path(__file__).resolve().parents[1]
-ENV = "dipenv/FieldMagnitudeTiny-v0"
-TINY = "dipenv/ThickeningControlTiny-v0"
 SHORT = ["n_steps=32", "batch_size=32", "n_epochs=2", "eval_freq=64", "checkpoint_freq=32"]
 TRAIN = ["--env", ENV, "--n-envs", "1", "--no-progress", "--algo", "ppo", "--timesteps", "64"]
-
-
-def _script(name: str) -> Any:
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def refused(capsys: pytest.CaptureFixture[str], main: Any, arguments: list[str]) -> str:
-    with pytest.raises(SystemExit) as exit_:
-        main(arguments)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2, err
-    return err
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
@@ -368,7 +349,7 @@ def test_pulse_train_refuses_another_rate_in_its_folder(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Was: a rerun with another ``--rate`` replaced the stored episodes of the first one."""
-    pulse_train = _script("pulse_train")
+    pulse_train = load_script("pulse_train")
     legacy = tmp_path / "legacy"
     legacy.mkdir()
     setup = {"env": "dipenv/ThickeningControl-v2", "rate": 4.0, "intervals": 16}
@@ -421,7 +402,7 @@ def test_report_scripts_write_beside_their_sweep_or_into_a_folder_of_their_own(
 
 
 def test_collect_training_runs_claims_its_out(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    collect = _script("collect_training_runs")
+    collect = load_script("collect_training_runs")
     study, evaluation = tmp_path / "study", tmp_path / "evaluation"
     (study / "seed0").mkdir(parents=True)
     (study / "seed0" / "model.zip").write_bytes(b"")
@@ -439,7 +420,7 @@ def test_collect_training_runs_claims_its_out(tmp_path: Path, capsys: pytest.Cap
 
 
 def test_delta_dependence_claims_its_out(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    delta = _script("delta_dependence")
+    delta = load_script("delta_dependence")
     mine = tmp_path / "mine"
     mine.mkdir()
     (mine / "notes.txt").write_text("keep")

@@ -5,38 +5,17 @@ note, the demo's folder identity and its learning curve's baselines). Nothing he
 from __future__ import annotations
 
 import ast
-import importlib.util
 import json
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from agents_helpers import ENV, ROOT, TINY, load_script, refused
 
 import sim
 from agents import controllers, demo, evaluate, open_loop, train, usage
 from sim.runs import claim
-
-ROOT = Path(__file__).resolve().parents[1]
-ENV = "dipenv/FieldMagnitudeTiny-v0"
-TINY = "dipenv/ThickeningControlTiny-v0"
-
-
-def _script(name: str) -> Any:
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-def refused(capsys: pytest.CaptureFixture[str], main: Any, arguments: list[str]) -> str:
-    with pytest.raises(SystemExit) as exit_:
-        main(arguments)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2, err
-    return err
-
 
 # -- silently wrong ------------------------------------------------------------------------------------------
 
@@ -78,7 +57,7 @@ def test_paired_rows_refuses_negative_energies_and_infinite_values(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Was: a negative field energy printed an energy saving of "600%", an infinite one a finite gap."""
-    paired_rows = _script("paired_rows")
+    paired_rows = load_script("paired_rows")
 
     def write(name: str, energy: Any, excess: Any = 0.1) -> Path:
         episode = {"split": "test", "index": 0, "failed": False, "return": -1.0}

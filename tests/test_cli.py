@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import sim.run
+import sim.runs.run
 from sim import Simulation, SimulationConfig
-from sim.cli import _summary, main, with_flags
-from sim.io import from_json_ready
+from sim.runs.cli import _summary, main, with_flags
+from sim.runs.io import from_json_ready
 
 CONFIG = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=1)
 """The finished run shared by the tests below: 10 steps of N = 40 (well under a second once compiled)."""
@@ -159,7 +159,7 @@ def test_not_implemented_configuration_exits_2(tmp_path: Path, capsys, monkeypat
             "yet; only mason_number=inf (pure shear) is supported"
         )
 
-    monkeypatch.setattr(sim.run, "Simulation", refuse)
+    monkeypatch.setattr(sim.runs.run, "Simulation", refuse)
     out = tmp_path / "o"
     args = ["--out", str(out), "--phi", "0.4", "--n-particles", "100", "--mason", "2", "--strain", "0.02"]
     status, _, err = run_cli(args, capsys)
@@ -390,7 +390,7 @@ def test_interrupted_run_exits_130_keeping_its_checkpoint(
     def interrupted(*args: object, **kwargs: object) -> float:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(sim.run, "_advance_with_checkpoints", interrupted)
+    monkeypatch.setattr(sim.runs.run, "_advance_with_checkpoints", interrupted)
     args = [*RUN_ARGS[:-4], "--strain", "0.04", "--seed", "1", "--out", str(out), "--resume"]
     status, _, err = run_cli(args, capsys)
     assert status == 130 and "Traceback" not in err

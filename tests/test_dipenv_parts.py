@@ -178,7 +178,8 @@ def test_library_key_tracks_the_physics_sources(tmp_path: Path, monkeypatch: pyt
     before = state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED)
     for name in state_library.PHYSICS_EXCLUDED:
         assert (copy / name).exists(), name  # the list names files and folders that exist
-    (copy / "cli.py").write_text((copy / "cli.py").read_text() + "\n# an edit of the command line\n")
+    cli = copy / "runs" / "cli.py"
+    cli.write_text(cli.read_text() + "\nEDITED_COMMAND_LINE = 1\n")  # a change of the application's code
     assert state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED) == before
     stepper = copy / "stepper.py"
     text = stepper.read_text()
@@ -199,6 +200,25 @@ def test_library_key_tracks_the_physics_sources(tmp_path: Path, monkeypatch: pyt
     ewald = copy / "dipolophoresis" / "ewald.py"
     ewald.write_text(ewald.read_text() + "\n# a faster Ewald sum\n")
     assert state_library.source_digest(copy, state_library.PHYSICS_EXCLUDED) == lubricated
+
+
+def test_the_moved_application_keeps_the_library_key(tmp_path: Path) -> None:
+    """Issue 45 moved the application into ``sim/runs/`` and ``sim/plots/``, which rewrote the imports of
+    ``sim/__init__.py`` (a digested file): an import of a moved module is digested under its former name,
+    so the move kept the library key and the cached states. Any other import change is a code edit."""
+    moved = tmp_path / "moved.py"
+    moved.write_text("from sim.runs.io import versions\nimport sim.plots.sweep\n")
+    former = tmp_path / "former.py"
+    former.write_text("from sim.io import versions\nimport sim.sweep_figures\n")
+    assert state_library._normalised_source(moved) == state_library._normalised_source(former)
+    (tmp_path / "stayed.py").write_text("from sim.runs.folder import claim\n")  # not moved: not renamed
+    (tmp_path / "renamed.py").write_text("from sim.folder import claim\n")
+    assert state_library._normalised_source(tmp_path / "stayed.py") != state_library._normalised_source(
+        tmp_path / "renamed.py"
+    )
+    for new, old in state_library.DIGESTED_UNDER_FORMER_NAME.items():
+        path = Path(sim.__file__).parent.joinpath(*new.split(".")[1:]).with_suffix(".py")
+        assert path.is_file() and old.count(".") == 1, (new, old)  # every entry names a module that moved
 
 
 def test_stale_states_in_the_library_folder_are_generated_again(tmp_path: Path) -> None:

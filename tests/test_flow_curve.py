@@ -1,4 +1,4 @@
-"""``sim.flow_curve`` and ``python -m sim flow-curve``: holds, averages, resume, refusals."""
+"""``sim.runs.flow_curve`` and ``python -m sim flow-curve``: holds, averages, resume, refusals."""
 
 from __future__ import annotations
 
@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 
 import sim
-import sim.run
+import sim.runs.run
 from sim import Simulation, SimulationConfig, run_simulation, summarise
-from sim.cli import build_parser, main
-from sim.flow_curve import MIN_HOLD_STEPS, FlowCurveSpec, read_rows, run_flow_curve
+from sim.runs.cli import build_parser, main
+from sim.runs.flow_curve import MIN_HOLD_STEPS, FlowCurveSpec, read_rows, run_flow_curve
 
 CONFIG = SimulationConfig(n_particles=64, volume_fraction=0.3, mason_number=2.0, seed=4)
 SPEC = FlowCurveSpec(CONFIG, (0.5, 2.0), strain_per_rate=0.02, down=True)
@@ -351,7 +351,7 @@ def test_ctrl_c_exits_130_printing_only_what_was_written(tmp_path, capsys, monke
 
         yield interrupted
 
-    monkeypatch.setattr(sim.run, "_deferred_interrupt", pressed_during_the_second_hold)
+    monkeypatch.setattr(sim.runs.run, "_deferred_interrupt", pressed_during_the_second_hold)
     out = tmp_path / "curve"
     status, stdout, err = _cli(["--mason", "2", "--out", str(out)], capsys)
     assert status == 130, err
@@ -398,7 +398,7 @@ def test_every_parser_of_sim_refuses_prefixes() -> None:
     commands = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     assert parser.allow_abbrev is False
     assert {name: sub.allow_abbrev for name, sub in commands.choices.items()} == dict.fromkeys(
-        ("run", "sweep", "figures", "flow-curve"), False
+        ("run", "sweep", "figures", "flow-curve", "movie"), False
     )
     root = Path(sim.__file__).parent
     for path in root.rglob("*.py"):

@@ -20,8 +20,7 @@ import numpy as np
 import pytest
 
 from sim import SimulationConfig, SimulationState, run_simulation
-from sim.cli import main
-from sim.io import load_checkpoint, read_json
+from sim.runs.cli import main
 from sim.runs.folder import MANIFEST
 from sim.runs.initial_state import (
     InitialState,
@@ -30,6 +29,7 @@ from sim.runs.initial_state import (
     read_initial_state,
     with_field_of,
 )
+from sim.runs.io import load_checkpoint, read_json
 from sim.runs.trajectory import TRAJECTORY, append_frames, make_frame
 
 CONFIG = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=3)

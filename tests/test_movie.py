@@ -12,8 +12,8 @@ import pytest
 from PIL import Image
 
 from sim import SimulationConfig, run_simulation
-from sim.cli import main
 from sim.plots.movie import MovieError, render_movie
+from sim.runs.cli import main
 
 SHORT = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=3)
 

@@ -94,3 +94,12 @@ def test_fresh_and_cached_kernels_give_the_same_numbers(tmp_path: Path) -> None:
         subprocess.run([sys.executable, str(script), str(tmp_path / f"{name}.npy")], env=env, check=True)
     fresh, cached = np.load(tmp_path / "fresh.npy"), np.load(tmp_path / "cached.npy")
     assert np.array_equal(fresh, cached)
+
+
+def test_recorded_source_digest_covers_the_whole_package() -> None:
+    """Issue 45 moved ``sim/io.py`` to ``sim/runs/io.py``: the digest that run files (``versions()``) and
+    run-folder manifests record is still that of all of ``sim/``, not of the folder the writer lives in."""
+    from sim.runs.folder import _source_digest
+
+    whole = source_digest(Path(sim.__file__).parent)
+    assert sim.versions()["sim_source"] == whole == _source_digest()

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 import sim
-import sim.run
+import sim.runs.run
 from sim import SimulationConfig, SimulationState, run_simulation
-from sim.io import OBSERVABLE_PREFIX
-from sim.run import COMPILE_NOTICE, check_run_length, compiled_kernels_cached
 from sim.runs.folder import MANIFEST, RunFolderError, claim, normalise, read_manifest
+from sim.runs.io import OBSERVABLE_PREFIX
+from sim.runs.run import COMPILE_NOTICE, check_run_length, compiled_kernels_cached
 
 SHORT = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02, seed=3)
 """10 steps of N = 40."""
@@ -53,13 +53,13 @@ def test_run_length_accepts_one_sample_after_the_transient() -> None:
 def test_run_length_is_bounded_by_the_field_as_well(tmp_path: Path) -> None:
     """A strong field makes the adaptive step tiny: ``--mason 1e-9`` was an effective hang."""
     strong = dataclasses.replace(SHORT, mason_number=1e-9, strain=30.0, near_field="none")
-    assert sim.run.field_step_estimate(strong) > 1e12
+    assert sim.runs.run.field_step_estimate(strong) > 1e12
     with pytest.raises(ValueError, match=r"mason_number=1e-09 is too strong a field for strain=30"):
         run_simulation(strong, tmp_path / "o", progress=False)
     assert not (tmp_path / "o").exists()
     # the paper's range
     check_run_length(dataclasses.replace(SHORT, mason_number=0.01, strain=30.0, near_field="none"))
-    assert sim.run.field_step_estimate(SHORT) == 0.0  # no field
+    assert sim.runs.run.field_step_estimate(SHORT) == 0.0  # no field
 
 
 def test_refused_runs_write_nothing(tmp_path: Path) -> None:
@@ -194,7 +194,7 @@ def test_observables_contract_and_short_runs(tmp_path: Path) -> None:
     assert "too short for the fit window" in result["diffusivity_note"]
     assert result["diffusivity_fit_window"][0] == 1.0
     assert result["observables_from_strain"] == pytest.approx(0.012)  # first t_k >= transient 0.01
-    saved = sim.io.read_json(tmp_path / "o" / "result.json")
+    saved = sim.runs.io.read_json(tmp_path / "o" / "result.json")
     assert np.isnan(saved["diffusivity_yy"]) and saved["msd_samples"] == 3
     assert saved["pair_distribution_samples"] == 1
     # fabric and contact number of the configurations g is sampled at: <n n> has trace 1 and is symmetric
@@ -240,8 +240,8 @@ def test_compile_notice_and_progress_bar_after_the_first_chunk(tmp_path: Path, m
         bars.append(_Bar(strain))
         return bars[-1]
 
-    monkeypatch.setattr(sim.run, "_progress_bar", make_bar)
-    monkeypatch.setattr(sim.run, "compiled_kernels_cached", lambda: False)
+    monkeypatch.setattr(sim.runs.run, "_progress_bar", make_bar)
+    monkeypatch.setattr(sim.runs.run, "compiled_kernels_cached", lambda: False)
     config = dataclasses.replace(SHORT, strain=0.3)  # at least 150 steps: two chunks of <= 100
     run_simulation(config, tmp_path / "o", progress=True)
     assert COMPILE_NOTICE in capsys.readouterr().err
@@ -250,7 +250,7 @@ def test_compile_notice_and_progress_bar_after_the_first_chunk(tmp_path: Path, m
     assert bars[0].updates >= 1 and bars[0].n == pytest.approx(0.3, abs=config.time_step)
     run_simulation(config, tmp_path / "quiet", progress=False)
     assert COMPILE_NOTICE not in capsys.readouterr().err
-    monkeypatch.setattr(sim.run, "compiled_kernels_cached", lambda: True)
+    monkeypatch.setattr(sim.runs.run, "compiled_kernels_cached", lambda: True)
     run_simulation(config, tmp_path / "cached", progress=True)
     assert COMPILE_NOTICE not in capsys.readouterr().err
 
@@ -278,7 +278,7 @@ def test_a_folder_holding_another_run_is_refused_unless_overwritten(tmp_path: Pa
     first = run_simulation(SHORT, out, progress=False)
     manifest = read_manifest(out)
     assert manifest is not None and manifest.command == "sim run"
-    assert manifest.params == normalise(sim.run.run_identity(SHORT))
+    assert manifest.params == normalise(sim.runs.run.run_identity(SHORT))
     before = {name: (out / name).read_bytes() for name in ("params.json", "result.json", "checkpoint.npz")}
     other = dataclasses.replace(SHORT, seed=4)
     with pytest.raises(ValueError) as refused:
@@ -295,8 +295,8 @@ def test_a_folder_holding_another_run_is_refused_unless_overwritten(tmp_path: Pa
     for key in ("relative_viscosity", "n1", "n2", "steps", "strain", "min_gap"):
         assert again[key] == first[key], key
     result = run_simulation(other, out, progress=False, overwrite=True)
-    assert result["seed"] == 4 and sim.io.read_json(out / "result.json")["seed"] == 4
-    assert sim.io.read_json(out / "params.json")["config"]["seed"] == 4
+    assert result["seed"] == 4 and sim.runs.io.read_json(out / "result.json")["seed"] == 4
+    assert sim.runs.io.read_json(out / "params.json")["config"]["seed"] == 4
     assert read_manifest(out).params["seed"] == 4  # type: ignore[union-attr]
 
 
@@ -359,11 +359,11 @@ def test_an_interrupted_rerun_leaves_no_old_result_beside_its_parameters(
     def killed(*args: Any, **kwargs: Any) -> float:
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(sim.run, "_advance_with_checkpoints", killed)
+    monkeypatch.setattr(sim.runs.run, "_advance_with_checkpoints", killed)
     new = LONG if resume else dataclasses.replace(SHORT, seed=4)
     with pytest.raises(KeyboardInterrupt):
         run_simulation(new, out, progress=False, resume=resume, overwrite=not resume)
-    assert SimulationConfig.from_dict(sim.io.read_json(out / "params.json")["config"]) == new
+    assert SimulationConfig.from_dict(sim.runs.io.read_json(out / "params.json")["config"]) == new
     left = sorted(p.name for p in out.iterdir())
     assert left == (["checkpoint.npz", MANIFEST, "params.json"] if resume else [MANIFEST, "params.json"])
 
@@ -378,11 +378,11 @@ def _partial_then_fail(file: Any, *args: Any, **kwargs: Any) -> None:
 _STATE = SimulationState.initial(np.zeros((2, 3)))
 _RECORDS = sim.StepRecords.empty()
 _WRITERS = {
-    "checkpoint.npz": lambda p: sim.io.save_checkpoint(p, SHORT, _STATE, _RECORDS, 0.0),
-    "final_state.npz": lambda p: sim.io.save_final_state(p, SHORT, _STATE),
-    "pair_distribution.npz": lambda p: sim.io.write_pair_distribution(p, {"g_r": np.ones(3)}),
-    "timeseries.csv": lambda p: sim.io.write_timeseries(p, _RECORDS),
-    "msd.csv": lambda p: sim.io.write_msd(p, np.ones(2), np.ones((2, 3))),
+    "checkpoint.npz": lambda p: sim.runs.io.save_checkpoint(p, SHORT, _STATE, _RECORDS, 0.0),
+    "final_state.npz": lambda p: sim.runs.io.save_final_state(p, SHORT, _STATE),
+    "pair_distribution.npz": lambda p: sim.runs.io.write_pair_distribution(p, {"g_r": np.ones(3)}),
+    "timeseries.csv": lambda p: sim.runs.io.write_timeseries(p, _RECORDS),
+    "msd.csv": lambda p: sim.runs.io.write_msd(p, np.ones(2), np.ones((2, 3))),
 }
 
 
@@ -396,7 +396,7 @@ def test_result_files_are_written_atomically(tmp_path: Path, monkeypatch, name: 
     written = path.read_bytes()
     path.write_bytes(b"previous")
     with monkeypatch.context() as patch:
-        patch.setattr(sim.io.np, "savez" if name.endswith(".npz") else "savetxt", _partial_then_fail)
+        patch.setattr(sim.runs.io.np, "savez" if name.endswith(".npz") else "savetxt", _partial_then_fail)
         with pytest.raises(OSError, match="No space left"):
             _WRITERS[name](path)
     assert path.read_bytes() == b"previous"
@@ -406,15 +406,15 @@ def test_result_files_are_written_atomically(tmp_path: Path, monkeypatch, name: 
 
 
 def test_json_goes_through_atomic_file(tmp_path: Path) -> None:
-    """``result.json`` and ``params.json`` are written by :func:`sim.io.write_json`, atomically."""
+    """``result.json`` and ``params.json`` are written by :func:`sim.runs.io.write_json`, atomically."""
     path = tmp_path / "result.json"
     path.write_text("previous")
-    with pytest.raises(RuntimeError), sim.io.atomic_file(path) as handle:
+    with pytest.raises(RuntimeError), sim.runs.io.atomic_file(path) as handle:
         handle.write(b"{half")
         raise RuntimeError("killed")
     assert path.read_text() == "previous" and [p.name for p in tmp_path.iterdir()] == ["result.json"]
-    sim.io.write_json(path, {"a": float("nan")})
-    assert sim.io.read_json(path)["a"] != sim.io.read_json(path)["a"]
+    sim.runs.io.write_json(path, {"a": float("nan")})
+    assert sim.runs.io.read_json(path)["a"] != sim.runs.io.read_json(path)["a"]
     assert [p.name for p in tmp_path.iterdir()] == ["result.json"]
 
 
@@ -429,10 +429,10 @@ def test_ctrl_c_stops_at_the_end_of_a_chunk_with_a_checkpoint(tmp_path: Path, mo
         yield lambda: True
 
     with monkeypatch.context() as patch:
-        patch.setattr(sim.run, "_deferred_interrupt", pressed_at_once)
+        patch.setattr(sim.runs.run, "_deferred_interrupt", pressed_at_once)
         with pytest.raises(KeyboardInterrupt):
             run_simulation(config, tmp_path / "cut", progress=False)
-    _, state, _, _ = sim.io.load_checkpoint(tmp_path / "cut" / "checkpoint.npz")
+    _, state, _, _ = sim.runs.io.load_checkpoint(tmp_path / "cut" / "checkpoint.npz")
     assert 0.0 < state.strain < 0.3 and not (tmp_path / "cut" / "result.json").exists()
     resumed = run_simulation(config, tmp_path / "cut", progress=False, resume=True)
     direct = run_simulation(config, tmp_path / "direct", progress=False)
@@ -446,7 +446,7 @@ def test_ctrl_c_stops_at_the_end_of_a_chunk_with_a_checkpoint(tmp_path: Path, mo
 
 def test_deferred_interrupt_sets_a_flag_then_restores_the_handler() -> None:
     previous = signal.getsignal(signal.SIGINT)
-    with sim.run._deferred_interrupt() as interrupted:
+    with sim.runs.run._deferred_interrupt() as interrupted:
         assert not interrupted()
         signal.raise_signal(signal.SIGINT)  # no KeyboardInterrupt here
         assert interrupted()
@@ -455,7 +455,7 @@ def test_deferred_interrupt_sets_a_flag_then_restores_the_handler() -> None:
 
 def test_figures_are_written_atomically(tmp_path: Path, monkeypatch) -> None:
     """Issue 45: the plots (stress.png, layering.png, flow_curve.png, the sweep figures) were saved
-    straight into their files. Every figure goes through :func:`sim.io.save_figure` (a failure half-way
+    straight into their files. Every figure goes through :func:`sim.runs.io.save_figure` (a failure half-way
     keeps the previous file, and no temporary file is left)."""
     import matplotlib
 
@@ -473,11 +473,11 @@ def test_figures_are_written_atomically(tmp_path: Path, monkeypatch) -> None:
     with monkeypatch.context() as patch:
         patch.setattr(type(figure), "savefig", half_then_full_disk)
         with pytest.raises(OSError, match="No space left"):
-            sim.io.save_figure(figure, path)
+            sim.runs.io.save_figure(figure, path)
     assert path.read_bytes() == b"previous" and [p.name for p in tmp_path.iterdir()] == ["stress.png"]
-    sim.io.save_figure(figure, path, dpi=40)
+    sim.runs.io.save_figure(figure, path, dpi=40)
     assert path.read_bytes().startswith(b"\x89PNG")
     plt.close(figure)
     root = Path(sim.__file__).parent
     direct = [p.name for p in root.rglob("*.py") if ".savefig(" in p.read_text() and p.name != "io.py"]
-    assert direct == [], f"figures saved without sim.io.save_figure in {direct}"
+    assert direct == [], f"figures saved without sim.runs.io.save_figure in {direct}"

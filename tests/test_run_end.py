@@ -1,5 +1,5 @@
 """Issue 45: a run ended at the first step past its strain (up to one step, 0.002, too far). Its last step
-is now shortened to land on the requested strain (``sim.run._step_at_most_to``), with the variable-step
+is now shortened to land on the requested strain (``sim.runs.run._step_at_most_to``), with the variable-step
 AB2 update ``x + h[(1 + r/2) u_n - (r/2) u_{n-1}]``, ``r = h / h_prev``, so that the step stays second
 order, and every earlier step is the unshortened run's, bit for bit.
 
@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 
 from sim import Simulation, SimulationConfig, SimulationState, run_simulation
-from sim.io import load_checkpoint
-from sim.run import _step_at_most_to
+from sim.runs.io import load_checkpoint
+from sim.runs.run import _step_at_most_to
 from sim.stepper import stop_time
 
 UNEVEN = SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.0205, seed=3)

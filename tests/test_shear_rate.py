@@ -22,7 +22,7 @@ import pytest
 
 from sim import Simulation, SimulationConfig
 from sim.geometry.box import lees_edwards_offset
-from sim.io import load_checkpoint, save_checkpoint
+from sim.runs.io import load_checkpoint, save_checkpoint
 from sim.state import SimulationState
 
 BASE = dict(n_particles=64, volume_fraction=0.45, seed=3, strain=1.0)

@@ -13,8 +13,8 @@ from sim import Simulation, SimulationConfig, SimulationState
 from sim.contacts.repulsion import repulsion_scale
 from sim.hydrodynamics.resistance_functions import lubrication_scalars
 from sim.hydrodynamics.stokes_drag import STRESSLET_DRAG
-from sim.io import load_checkpoint, save_checkpoint
 from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, LUBRICATION, REPULSION, STRESS_CONTRIBUTIONS
+from sim.runs.io import load_checkpoint, save_checkpoint
 from sim.step_parameters import step_parameters
 from sim.stepper import choose_time_step
 

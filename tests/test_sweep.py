@@ -1,6 +1,6 @@
 """Sweeps: each run is a pure function of its config, so a local pool, a Dask cluster and a direct run give
 the same numbers bit for bit; reruns reuse finished points, resume interrupted ones and rerun stale ones;
-a failed point is recorded and the others finish. Also the task engine (sim.tasks) they run on."""
+a failed point is recorded and the others finish. Also the task engine (sim.runs.tasks) they run on."""
 
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ from typing import Any
 
 import pytest
 
-import sim.run
+import sim.runs.run
 from sim import SimulationConfig, SimulationError, run_simulation
-from sim.sweep import ERROR_FILE, MANIFEST, SweepError, plan_point, run_name, run_points, run_sweep
-from sim.tasks import TaskFailure, run_tasks
+from sim.runs.sweep import ERROR_FILE, MANIFEST, SweepError, plan_point, run_name, run_points, run_sweep
+from sim.runs.tasks import TaskFailure, run_tasks
 
 CONFIGS = [
     SimulationConfig(n_particles=40, volume_fraction=0.3, strain=0.02, seed=1),
@@ -99,13 +99,13 @@ def test_dask_cluster_sweep_equals_the_local_pool_bit_for_bit(tmp_path) -> None:
 def _counting(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, bool]]:
     """Record every ``run_simulation`` call of an in-process sweep as (folder name, resume)."""
     calls: list[tuple[str, bool]] = []
-    original = sim.run.run_simulation
+    original = sim.runs.run.run_simulation
 
     def counted(config: SimulationConfig, out_dir: Any, *args: Any, **kwargs: Any) -> dict[str, Any]:
         calls.append((Path(out_dir).name, bool(kwargs.get("resume", False))))
         return original(config, out_dir, *args, **kwargs)
 
-    monkeypatch.setattr(sim.run, "run_simulation", counted)
+    monkeypatch.setattr(sim.runs.run, "run_simulation", counted)
     return calls
 
 
@@ -159,14 +159,14 @@ def test_interrupted_sweep_resumes_only_unfinished_points(tmp_path, monkeypatch)
 
 
 def test_a_failed_point_is_recorded_and_the_others_finish(tmp_path, monkeypatch) -> None:
-    original = sim.run.run_simulation
+    original = sim.runs.run.run_simulation
 
     def fails_for_seed_2(config: SimulationConfig, *args: Any, **kwargs: Any) -> dict[str, Any]:
         if config.seed == 2:
             raise SimulationError("overlap removal did not converge (injected)")
         return original(config, *args, **kwargs)
 
-    monkeypatch.setattr(sim.run, "run_simulation", fails_for_seed_2)
+    monkeypatch.setattr(sim.runs.run, "run_simulation", fails_for_seed_2)
     configs = [dataclasses.replace(CONFIGS[0], seed=seed) for seed in (1, 2, 3)]
     out = tmp_path / "sweep"
     with pytest.raises(SweepError, match=r"1 of 3 sweep points failed: .*seed2: SimulationError") as caught:
@@ -183,7 +183,7 @@ def test_a_failed_point_is_recorded_and_the_others_finish(tmp_path, monkeypatch)
     for config in (configs[0], configs[2]):
         assert _result_file(out, config).exists()
 
-    monkeypatch.setattr(sim.run, "run_simulation", original)  # fixed: the rerun runs only that point
+    monkeypatch.setattr(sim.runs.run, "run_simulation", original)  # fixed: the rerun runs only that point
     points = run_points(configs, out, workers=1)
     assert [p.status for p in points] == ["reused", "finished", "reused"]
     assert not (out / run_name(configs[1]) / ERROR_FILE).exists()
@@ -192,7 +192,7 @@ def test_a_failed_point_is_recorded_and_the_others_finish(tmp_path, monkeypatch)
 def test_plans_of_folders(tmp_path) -> None:
     """What a rerun finds: nothing, a run stopped before its first checkpoint (params.json only: nothing to
     continue), files of another configuration."""
-    from sim.io import write_params
+    from sim.runs.io import write_params
 
     config = CONFIGS[0]
     folder = tmp_path / run_name(config)

@@ -13,10 +13,10 @@ from typing import Any
 
 import pytest
 
-import sim.run
+import sim.runs.run
 from sim import SimulationConfig, SimulationError
-from sim.cli import _sweep_configs, build_parser, main, parse_arguments, preset_names
-from sim.sweep import ERROR_FILE, MANIFEST
+from sim.runs.cli import _sweep_configs, build_parser, main, parse_arguments, preset_names
+from sim.runs.sweep import ERROR_FILE, MANIFEST
 
 PREFIX = "python -m sim sweep: error: "
 TINY = ["--n-particles", "40", "--strain", "0.02", "--workers", "1", "--quiet"]
@@ -211,14 +211,14 @@ def test_tiny_sweep_end_to_end_and_rerun(tmp_path: Path, capsys) -> None:
 
 
 def test_a_failed_point_gives_exit_status_1(tmp_path: Path, capsys, monkeypatch) -> None:
-    original = sim.run.run_simulation
+    original = sim.runs.run.run_simulation
 
     def fails_at_phi_04(config: SimulationConfig, *args: Any, **kwargs: Any) -> dict[str, Any]:
         if config.volume_fraction == 0.4:
             raise SimulationError("resistance solve did not converge (injected)")
         return original(config, *args, **kwargs)
 
-    monkeypatch.setattr(sim.run, "run_simulation", fails_at_phi_04)
+    monkeypatch.setattr(sim.runs.run, "run_simulation", fails_at_phi_04)
     out = tmp_path / "sweep"
     status, stdout, err = sweep_cli(["--phi", "0.3,0.4", "--out", str(out), *TINY], capsys)
     assert status == 1
@@ -235,17 +235,17 @@ def test_ctrl_c_with_one_worker_exits_130_and_leaves_the_point_pending(
 ) -> None:
     """Issue 23: Ctrl-C during ``sim sweep --workers 1`` recorded the running point as failed, because
     numba turned the interrupt inside a kernel into a ``SystemError``. A run now defers Ctrl-C to its next
-    checkpoint and raises ``KeyboardInterrupt`` there (sim.run; a real SIGINT is tested in test_cli); the
+    checkpoint and raises ``KeyboardInterrupt`` there (sim.runs.run; a real SIGINT is tested in test_cli); the
     sweep must pass that up: exit 130, the point still pending (no error.json), the finished one kept.
     (A real SIGINT to ``sim sweep --workers 1`` gave exactly this on 2026-12-03.)"""
-    original = sim.run.run_simulation
+    original = sim.runs.run.run_simulation
 
     def interrupted_at_phi_04(config: SimulationConfig, *args: Any, **kwargs: Any) -> dict[str, Any]:
         if config.volume_fraction == 0.4:
             raise KeyboardInterrupt
         return original(config, *args, **kwargs)
 
-    monkeypatch.setattr(sim.run, "run_simulation", interrupted_at_phi_04)
+    monkeypatch.setattr(sim.runs.run, "run_simulation", interrupted_at_phi_04)
     out = tmp_path / "sweep"
     status, _, err = sweep_cli(["--phi", "0.3,0.4", "--workers", "1", "--out", str(out), *TINY], capsys)
     assert status == 130

@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.cli import main
-from sim.io import write_json
-from sim.sweep_figures import crossover_mason, load_sweep, make_figures, mean_pair_distribution
+from sim.plots.sweep import crossover_mason, load_sweep, make_figures, mean_pair_distribution
+from sim.runs.cli import main
+from sim.runs.io import write_json
 
 PHIS = (0.3, 0.45)
 MASONS = (0.5, 1.0, 5.0, math.inf)
@@ -277,7 +277,7 @@ def test_cli_refuses_an_out_that_is_a_file_or_below_one(tmp_path: Path, capsys) 
 
 def test_cli_names_a_file_it_cannot_write(tmp_path: Path, capsys, monkeypatch) -> None:
     """A write that fails after the checks (a read-only folder, a full disk) exits 2 naming the file."""
-    import sim.sweep_figures
+    import sim.plots.sweep
 
     root = tmp_path / "sweep"
     write_sweep(root)
@@ -285,7 +285,7 @@ def test_cli_names_a_file_it_cannot_write(tmp_path: Path, capsys, monkeypatch) -
     def read_only(*args: object, **kwargs: object) -> None:
         raise PermissionError(13, "Permission denied", str(tmp_path / "figs" / "summary.csv"))
 
-    monkeypatch.setattr(sim.sweep_figures, "write_summary", read_only)
+    monkeypatch.setattr(sim.plots.sweep, "write_summary", read_only)
     with pytest.raises(SystemExit) as exc:
         main(["figures", str(root), "--out", str(tmp_path / "figs"), "--quiet"])
     assert exc.value.code == 2

@@ -18,10 +18,10 @@ import gsd.hoomd
 import numpy as np
 import pytest
 
-import sim.run
+import sim.runs.run
 from sim import Simulation, SimulationConfig, SimulationState, run_simulation
 from sim.geometry.box import lees_edwards_offset
-from sim.io import load_checkpoint
+from sim.runs.io import load_checkpoint
 from sim.runs.trajectory import (
     TRAJECTORY,
     TrajectoryError,
@@ -182,7 +182,7 @@ def test_an_interrupted_run_resumes_without_duplicate_or_lost_frames(tmp_path: P
 
     cut = tmp_path / "cut"
     with monkeypatch.context() as patch:
-        patch.setattr(sim.run, "_deferred_interrupt", pressed_at_once)
+        patch.setattr(sim.runs.run, "_deferred_interrupt", pressed_at_once)
         with pytest.raises(KeyboardInterrupt):
             run_simulation(config, cut, progress=False, **keep)  # type: ignore[arg-type]
     written = _frames(cut / TRAJECTORY)

@@ -21,7 +21,7 @@ import pytest
 
 from sim.config import SimulationConfig
 from sim.observables.stress import DIPOLOPHORESIS_CONTRIBUTIONS, SHEAR_CONTRIBUTIONS, STRESS_CONTRIBUTIONS
-from sim.sweep import run_sweep
+from sim.runs.sweep import run_sweep
 
 VOLUME_FRACTIONS = {"none": (0.30, 0.45)}
 MASON_NUMBERS = (0.1, 1.0, 10.0, math.inf)

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import pytest
 
-from sim.cli import main as sim_main
-from sim.sweep_figures import load_sweep
+from sim.plots.sweep import load_sweep
+from sim.runs.cli import main as sim_main
 
 ROOT = Path(__file__).resolve().parents[1]
 SPEC = ROOT / "results" / "paper_grid" / "spec.yml"

@@ -23,8 +23,8 @@ from pathlib import Path
 import pytest
 
 from sim.config import SimulationConfig
-from sim.figures import plot_viscosity_curve
-from sim.sweep import run_sweep
+from sim.plots.figures import plot_viscosity_curve
+from sim.runs.sweep import run_sweep
 
 VOLUME_FRACTIONS = (0.15, 0.30, 0.40, 0.45, 0.50)
 OUT = Path(__file__).resolve().parents[1] / "runs" / "validation"

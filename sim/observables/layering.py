@@ -31,7 +31,7 @@ therefore projected onto the nearest reciprocal vector of the sheared lattice,
 by the shear just enough to be periodic across ``y = L`` (``|k|`` grows by at most ``sqrt(1 + 1/4)``;
 at ``delta = 0`` it is the unsheared ``k``). Field directions that are not box axes are refused by
 :func:`layer_axis` (``ValueError`` naming ``field_direction``); :func:`nearest_layer_axis` picks the
-axis closest to them for a run that must sample something (see :mod:`sim.run_observables`).
+axis closest to them for a run that must sample something (see :mod:`sim.runs.observables`).
 
 Cost (numpy, vectorised over particles and harmonics; shared 2-core VM, ``phi = 0.45``): 0.1 ms per
 configuration at N = 500 (5 harmonics, L = 16.7 a) and 1.3 ms at N = 4000 (10 harmonics), against about

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from sim.io import TEMPORARY_SUFFIX
 from sim.observables.layering import AXIS_NAMES, layer_order, nearest_layer_axis
+from sim.runs.io import TEMPORARY_SUFFIX
 from sim.runs.trajectory import TRAJECTORY, GsdFrame, read_frames
 
 MOVIE_SUFFIXES = (".gif", ".mp4")

@@ -11,7 +11,7 @@ writes ``manifest.json``:
                     non-finite numbers as ``"inf"``/``"-inf"``/``"nan"`` so that they round-trip)
 ``argv``            the command line that claimed it
 ``version``         the project version
-``source_digest``   a digest of the ``sim`` sources (:func:`sim.io.versions`)
+``source_digest``   a digest of the ``sim`` sources (:func:`sim.runs.io.versions`)
 ``created``         UTC time of the claim
 =================== ====================================================================================
 
@@ -47,7 +47,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sim.io import json_ready, write_text_atomically
+from sim.runs.io import json_ready, write_text_atomically
 
 MANIFEST = "manifest.json"
 """The manifest's file name."""

@@ -2,7 +2,7 @@
 
 A run's length is counted in strain (in time, units ``a/U0``, when it is quiescent: ``shear_rate = 0``,
 where ``--strain`` is a time). :class:`StrainMultiples` names the points ``k * every`` of that coordinate
-and the clock at which the run reaches each. As for the observables (:mod:`sim.run_observables`), the
+and the clock at which the run reaches each. As for the observables (:mod:`sim.runs.observables`), the
 step loop stops at the first step that reaches a point (stopping never changes the trajectory), so the
 state kept for point ``k`` is the one at the first step at or beyond it; a step longer than ``every``
 passes several points at once, and the state is then kept once, for the first of them. The one rule for

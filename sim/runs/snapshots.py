@@ -5,7 +5,7 @@ start (:class:`sim.runs.schedule.StrainMultiples`: the state at the first step a
 ``snapshots/strain_XXXX.npz``, named after the multiple (``strain_0005.npz``; with the decimals ``S``
 needs, ``strain_0002.5.npz`` for ``S = 0.5``; ``time_XXXX.npz`` in a quiescent run, whose length is a
 time). Each file is written atomically and holds what ``final_state.npz`` holds (the state's arrays and
-``box_length``, :func:`sim.io.save_final_state`), so ``--initial-state`` reads it. The state inside
+``box_length``, :func:`sim.runs.io.save_final_state`), so ``--initial-state`` reads it. The state inside
 carries its exact clock and strain (the file's name is the nominal multiple); the run's last step is
 shortened to end at the requested strain, so a multiple at the end is kept at exactly that strain.
 
@@ -18,8 +18,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sim import io
 from sim.config import SimulationConfig
+from sim.runs import io
 from sim.runs.schedule import StrainMultiples, multiples_decimals
 from sim.state import SimulationState
 

@@ -50,8 +50,8 @@ from typing import Any
 
 import numpy as np
 
-from sim import io
 from sim.geometry.box import lees_edwards_offset
+from sim.runs import io
 from sim.runs.schedule import StrainMultiples
 from sim.state import SimulationState
 

@@ -30,9 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from sim import io
 from sim.config import SimulationConfig
-from sim.figures import plot_layering
 from sim.observables.diffusion import (
     DIFFUSIVITY_FIT_START,
     MIN_INDEPENDENT_SEGMENTS,
@@ -53,6 +51,8 @@ from sim.observables.microstructure import (
     fabric_tensor,
 )
 from sim.observables.pair_distribution import PairDistributionAccumulator
+from sim.plots.figures import plot_layering
+from sim.runs import io
 from sim.simulation import Simulation, StepRecords
 from sim.stepper import stop_time
 

@@ -55,7 +55,7 @@ from sim.config import (
     SimulationConfig,
 )
 from sim.geometry.configurations import MAX_VOLUME_FRACTION, MIN_VOLUME_FRACTION
-from sim.tasks import MAX_SEEDS, parse_seeds
+from sim.runs.tasks import MAX_SEEDS, parse_seeds
 
 FLAGS = {
     "n_particles": "--n-particles",
@@ -623,7 +623,7 @@ def _option(flag: str) -> _Option:
 def _add_flow_curve_arguments(parser: argparse.ArgumentParser) -> None:
     """The flags of ``python -m sim flow-curve``: the suspension and numerics options of ``run`` (one
     value each, ``--mason`` a comma list), the rates, and the task options of ``sweep``."""
-    from sim.flow_curve import MIN_HOLD_STEPS
+    from sim.runs.flow_curve import MIN_HOLD_STEPS
 
     helps = {
         "--dt": f"largest time step (steps may adapt below it), in (0, 0.05]; every hold must take at least "
@@ -798,8 +798,8 @@ def _config(args: argparse.Namespace) -> SimulationConfig:
 def _sweep_configs(args: argparse.Namespace) -> list[SimulationConfig]:
     """Every point of the sweep (``--phi`` x ``--mason`` x ``--n-particles`` x ``--mechanism`` x ``--seeds``),
     checked as ``run`` checks one (each refused value exits 2 naming its flag) before anything runs."""
-    from sim.run import check_run_length
-    from sim.sweep import check_unique_names
+    from sim.runs.run import check_run_length
+    from sim.runs.sweep import check_unique_names
 
     parser: argparse.ArgumentParser = args.parser
     _check_run_values(parser, args.strain, args.transient)
@@ -859,8 +859,8 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
     parser: argparse.ArgumentParser = args.parser
     config = _config(args)
 
-    from sim.run import run_simulation
     from sim.runs.initial_state import InitialState, read_initial_state, with_field_of
+    from sim.runs.run import run_simulation
     from sim.simulation import SimulationError
 
     initial: InitialState | None = None
@@ -901,7 +901,7 @@ def _run(args: argparse.Namespace, args_list: list[str]) -> int:
         print(f"{parser.prog}: interrupted; {kept}", file=sys.stderr)
         return 130
     if args.json:
-        from sim.io import json_ready
+        from sim.runs.io import json_ready
 
         print(json.dumps(json_ready(result)))
     else:
@@ -924,10 +924,10 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
     configs = _sweep_configs(args)
     out = check_output_directory(parser, "--out", args.out)
 
-    from sim.io import json_ready, read_json
-    from sim.run import COMPILE_NOTICE, compiled_kernels_cached
     from sim.runs.folder import RunFolderError
-    from sim.sweep import MANIFEST, manifest_text, run_points
+    from sim.runs.io import json_ready, read_json
+    from sim.runs.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.runs.sweep import MANIFEST, manifest_text, run_points
 
     if not args.quiet and args.scheduler is None and not compiled_kernels_cached():
         print(COMPILE_NOTICE, file=sys.stderr, flush=True)
@@ -972,7 +972,7 @@ def _sweep(args: argparse.Namespace, args_list: list[str]) -> int:
 
 def _flow_curve(args: argparse.Namespace, args_list: list[str]) -> int:
     """``python -m sim flow-curve``."""
-    from sim.flow_curve import (
+    from sim.runs.flow_curve import (
         COMMAND,
         CSV_NAME,
         PLOT_NAME,
@@ -985,9 +985,9 @@ def _flow_curve(args: argparse.Namespace, args_list: list[str]) -> int:
         run_flow_curve_task,
         write_combined,
     )
-    from sim.run import COMPILE_NOTICE, compiled_kernels_cached
     from sim.runs.folder import RunFolderError, claim
-    from sim.tasks import TaskFailure, run_tasks
+    from sim.runs.run import COMPILE_NOTICE, compiled_kernels_cached
+    from sim.runs.tasks import TaskFailure, run_tasks
 
     parser: argparse.ArgumentParser = args.parser
     out = check_output_directory(parser, "--out", args.out)
@@ -1103,7 +1103,7 @@ def _movie(args: argparse.Namespace) -> int:
 
 def _figures(args: argparse.Namespace) -> int:
     """``python -m sim figures``."""
-    from sim.sweep_figures import make_figures
+    from sim.plots.sweep import make_figures
 
     parser: argparse.ArgumentParser = args.parser
     out = Path(args.directory) / "figures" if args.out is None else Path(args.out)

@@ -40,7 +40,9 @@ from typing import Any
 import numpy as np
 
 from sim.config import MAX_SHEAR_RATE, MAX_STEPS, MIN_SHEAR_RATE, SimulationConfig
-from sim.io import (
+from sim.observables.stress import block_average
+from sim.runs.folder import RunFolderError, claim, differing, normalise, preview
+from sim.runs.io import (
     CheckpointError,
     atomic_file,
     open_checkpoint,
@@ -50,8 +52,6 @@ from sim.io import (
     write_json,
     write_text_atomically,
 )
-from sim.observables.stress import block_average
-from sim.runs.folder import RunFolderError, claim, differing, normalise, preview
 from sim.runs.legacy import legacy_markers
 from sim.simulation import Simulation, StepRecords, summarise
 from sim.state import SimulationState
@@ -392,7 +392,7 @@ def run_flow_curve(
     ``ValueError``, naming ``flag``). Ctrl-C stops the curve at the end of the current chunk of steps
     with ``KeyboardInterrupt``; the finished holds are kept.
     """
-    from sim.run import _deferred_interrupt
+    from sim.runs.run import _deferred_interrupt
 
     out = Path(out_dir)
     found, legacy = check_curve_folder(out, [spec], resume, overwrite, flag)
@@ -461,7 +461,7 @@ def run_flow_curve(
 
 
 def run_flow_curve_task(payload: dict[str, Any]) -> list[dict]:
-    """Task form of :func:`run_flow_curve` for :func:`sim.tasks.run_tasks` (a picklable payload)."""
+    """Task form of :func:`run_flow_curve` for :func:`sim.runs.tasks.run_tasks` (a picklable payload)."""
     spec = FlowCurveSpec(
         SimulationConfig.from_dict(payload["config"]),
         tuple(payload["rates"]),

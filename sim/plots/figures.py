@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.io import save_figure
 from sim.observables.layering import (
     AXIS_NAMES,
     LAYERED_MIN_STRUCTURE_FACTOR,
@@ -14,8 +13,9 @@ from sim.observables.layering import (
     LayerOrderSeries,
     LayerSummary,
 )
+from sim.plots.sweep import plot_maron_pierce
+from sim.runs.io import save_figure
 from sim.simulation import StepRecords
-from sim.sweep_figures import plot_maron_pierce
 
 
 def plot_rheology(records: StepRecords, path: Path, transient: float, title: str = "") -> None:

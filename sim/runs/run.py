@@ -1,7 +1,7 @@
 """One run = a pure function of its ``SimulationConfig`` (seed included) that writes one directory.
 
 Besides the step records (rheology), a run samples g(r), its x–y projection and the displacement for the
-MSD at fixed clock times (:mod:`sim.run_observables`); their accumulators travel in the checkpoint, so a
+MSD at fixed clock times (:mod:`sim.runs.observables`); their accumulators travel in the checkpoint, so a
 resumed run continues them bit for bit. On request it keeps its state at multiples of its strain
 (``snapshots/``, :mod:`sim.runs.snapshots`) and a GSD trajectory (``trajectory.gsd``,
 :mod:`sim.runs.trajectory`), and it may start from a given configuration instead of a random packing
@@ -35,13 +35,13 @@ from typing import Any
 
 import numpy as np
 
-from sim import io
 from sim.config import MAX_STEPS, SimulationConfig
-from sim.figures import plot_rheology
-from sim.run_observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
+from sim.plots.figures import plot_rheology
+from sim.runs import io
 from sim.runs.folder import RunFolderError, claim, normalise, preview, read_manifest
 from sim.runs.initial_state import InitialState, check_initial_state, read_initial_state
 from sim.runs.legacy import legacy_markers
+from sim.runs.observables import DEFAULT_SAMPLE_INTERVAL, RunObservables
 from sim.runs.schedule import StrainMultiples
 from sim.runs.snapshots import SNAPSHOT_FOLDER, SnapshotWriter
 from sim.runs.trajectory import TRAJECTORY, TrajectoryError, TrajectoryWriter
@@ -140,7 +140,7 @@ RUN_FILES = (
     "layering.png",
     TRAJECTORY,
 )
-"""The files a run writes into its folder (:mod:`sim.io`); a folder holding any of them holds a run.
+"""The files a run writes into its folder (:mod:`sim.runs.io`); a folder holding any of them holds a run.
 (``snapshots/``, :data:`sim.runs.snapshots.SNAPSHOT_FOLDER`, is its folder of snapshots.)"""
 
 MAX_KEPT_STATES = 100_000
@@ -278,7 +278,7 @@ def _check_run_folder(
 
 
 def _remove_outputs(out: Path, keep: tuple[str, ...] = ()) -> None:
-    """Delete the run files of ``out`` (and temporary files of :func:`sim.io.atomic_file`) but ``keep``
+    """Delete the run files of ``out`` (and temporary files of :func:`sim.runs.io.atomic_file`) but ``keep``
     (the snapshot folder too, unless ``keep`` names it).
 
     Done before a run writes its ``params.json``, so that a run killed later never leaves the new
@@ -474,7 +474,7 @@ class _Recorders:
 
 TRAJECTORY_FRAMES = "trajectory_frames"
 """The checkpoint's count of the frames ``trajectory.gsd`` held when it was written (with the observables'
-arrays, :data:`sim.io.OBSERVABLE_PREFIX`)."""
+arrays, :data:`sim.runs.io.OBSERVABLE_PREFIX`)."""
 
 
 def run_simulation(
@@ -551,14 +551,14 @@ def run_simulation(
         ``diffusivity_fit_window`` ``[start, end]`` (lags of the fit), ``diffusivity_note``,
         ``msd_samples``, ``pair_distribution_samples``, ``observables_sample_interval``,
         ``observables_from_strain`` and ``observables_note`` (see :meth:`RunObservables.results`); the
-        arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.io`). A run from a given
+        arrays go to ``pair_distribution.npz`` and ``msd.csv`` (:mod:`sim.runs.io`). A run from a given
         configuration adds ``initial_state`` (``source``, ``digest``, ``time``, ``strain``), a run with a
         trajectory ``trajectory_frames``.
 
     Raises:
         ValueError: bad input (the message names the parameter); :class:`sim.runs.folder.RunFolderError`
         (a ``ValueError``) for a folder this run may not use, ``resume`` without a run to continue, or
-        ``resume`` with ``overwrite``; :class:`sim.io.CheckpointError` (a ``ValueError``) for a damaged
+        ``resume`` with ``overwrite``; :class:`sim.runs.io.CheckpointError` (a ``ValueError``) for a damaged
         checkpoint; :class:`sim.runs.initial_state.InitialStateError` (a ``ValueError``) for a
         configuration that cannot be read or does not fit ``config``;
         :class:`sim.runs.trajectory.TrajectoryError` (a ``ValueError``) for a trajectory that cannot be

@@ -1,6 +1,6 @@
 """Figures of a sweep (``python -m sim figures DIR``): the paper's rheology, microstructure, dynamics.
 
-Reads every ``DIR/<point>/result.json`` (written by :func:`sim.run.run_simulation`, e.g. through
+Reads every ``DIR/<point>/result.json`` (written by :func:`sim.runs.run.run_simulation`, e.g. through
 ``python -m sim sweep``), groups the points that differ only in their seed and draws, into
 ``DIR/figures`` (Matplotlib, Agg backend):
 
@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.io import read_json, save_figure, write_text_atomically
+from sim.runs.io import read_json, save_figure, write_text_atomically
 
 MARON_PIERCE_PHI_MAX = 0.63
 """Maximum packing fraction of the Maron–Pierce curve ``(1 - phi/phi_m)^-2`` drawn for reference."""

@@ -1,7 +1,7 @@
 """Sweeps: independent runs, one folder each, on a local process pool or a Dask cluster; resumable.
 
 Each run is a pure function of its ``SimulationConfig`` (seed included), so a sweep is an embarrassingly
-parallel map (:func:`sim.tasks.run_tasks`) of :func:`run_point` over points. A point runs into
+parallel map (:func:`sim.runs.tasks.run_tasks`) of :func:`run_point` over points. A point runs into
 ``OUT/<run_name>``; what a rerun of the same sweep does with a folder that is already there:
 
 * ``result.json`` of the same configuration made by the same ``sim`` sources (``params.json``: config and
@@ -22,7 +22,7 @@ name a point (time step, transient, near field, ...) and the longest ``strain``.
 (more ``--phi``, ``--mason``, ``--seeds``, ...) and a longer strain (the points are extended); other
 shared options, or a shorter strain (which would redo and so delete the longer runs), are refused unless
 ``overwrite`` deletes the whole sweep. Each point's folder is a ``sim run`` folder, claimed by its run
-(:func:`sim.run.run_simulation`); before any work, every point folder that exists must be one (or a
+(:func:`sim.runs.run.run_simulation`); before any work, every point folder that exists must be one (or a
 pre-manifest run, or hold only a failed point's ``error.json``), so that a sweep never writes into, or
 deletes, a folder it did not make.
 """
@@ -36,10 +36,10 @@ from pathlib import Path
 from typing import Any
 
 from sim.config import SimulationConfig
-from sim.io import read_json, versions, write_json
 from sim.runs.folder import RunFolderError, claim, differing, normalise, preview, read_manifest
+from sim.runs.io import read_json, versions, write_json
 from sim.runs.legacy import legacy_command, legacy_markers
-from sim.tasks import TaskFailure, run_tasks
+from sim.runs.tasks import TaskFailure, run_tasks
 
 MANIFEST = "sweep.json"
 """The sweep's manifest in its output folder."""
@@ -145,7 +145,7 @@ def _remove(out: Path, names: Sequence[str]) -> None:
 
 def _can_resume(out: Path, config: SimulationConfig) -> bool:
     """True if ``run_simulation(config, out, resume=True)`` would continue the checkpoint in ``out``."""
-    from sim.run import _load_resumable
+    from sim.runs.run import _load_resumable
 
     if plan_point(out, config) not in ("resumable", "finished"):
         return False
@@ -168,7 +168,7 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
         checkpoint when :func:`plan_point` and the checkpoint allow it, else run from the start (after
         removing a stale ``result.json``, ``error.json`` and checkpoint).
     """
-    from sim.run import run_simulation
+    from sim.runs.run import run_simulation
 
     config = SimulationConfig.from_dict(payload["config"])
     out = Path(payload["out"])

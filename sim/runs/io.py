@@ -67,7 +67,7 @@ def versions() -> dict[str, str]:
 
     return {
         "sim": __version__,
-        "sim_source": source_digest(Path(__file__).resolve().parent),
+        "sim_source": source_digest(Path(__file__).resolve().parent.parent),  # all of sim/, not sim/runs/
         "python": platform.python_version(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
