@@ -135,7 +135,9 @@ on ``ThickeningControl``, ``Sigma_xy`` in ``eta gammadot_ref`` on the stress-onl
 the schedules' rates are log-uniform around ``gammadot_ref``)."""
 
 
-def _index(unwrapped: Any, label: str) -> int:
+def observation_index(unwrapped: Any, label: str) -> int:
+    """Position of ``label`` in an env's observation (``observation_labels``); ``ValueError`` naming the
+    labels it has when it lacks it (a controller bound to an env that does not observe what it reads)."""
     labels = list(unwrapped.observation_labels)
     if label not in labels:
         raise ValueError(
@@ -165,7 +167,7 @@ class FeedForwardController:
     def bind(self, env: Any) -> FeedForwardController:
         """Find the rate in ``env``'s observation; ``ValueError`` if the env does not observe it."""
         unwrapped = env.unwrapped
-        self._rate_index = _index(unwrapped, "log10_shear_rate")
+        self._rate_index = observation_index(unwrapped, "log10_shear_rate")
         self._mapping = unwrapped.mapping
         return self
 
@@ -215,7 +217,7 @@ class PIController:
         unwrapped = env.unwrapped
         labels = list(unwrapped.observation_labels)
         self.measured = "slog_eta_r" if "slog_eta_r" in labels else "slog_shear_stress"
-        self._index = _index(unwrapped, self.measured)
+        self._index = observation_index(unwrapped, self.measured)
         return self
 
     def reset(self) -> None:
@@ -264,7 +266,7 @@ class RatePulseController:
     def bind(self, env: Any) -> RatePulseController:
         """Find the rate in ``env``'s observation; ``ValueError`` if the env does not observe it."""
         unwrapped = env.unwrapped
-        self._rate_index = _index(unwrapped, "log10_shear_rate")
+        self._rate_index = observation_index(unwrapped, "log10_shear_rate")
         self._mapping = unwrapped.mapping
         return self
 

@@ -44,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from agents.controllers import observation_index
 from dipenv.actions import action_from_direction
 
 DIRECTION_MAP_ROOT = Path(__file__).resolve().parents[1] / "results" / "direction_map"
@@ -68,14 +69,6 @@ reward charges), or ``target_preview`` ahead."""
 _FOLDER = re.compile(r"^phi(?P<phi>[0-9.]+)_(?P<direction>[a-z]+)$")
 
 
-def _index(unwrapped: Any, label: str) -> int:
-    labels = list(unwrapped.observation_labels)
-    if label not in labels:
-        raise ValueError(
-            f"the observation of {type(unwrapped).__name__} has no {label!r} "
-            f"(it holds {', '.join(l for l in labels if '[' not in l)})"
-        )
-    return labels.index(label)
 
 
 def _unslog(value: float) -> float:
@@ -205,8 +198,8 @@ class MapFeedForwardController:
     def bind(self, env: Any) -> MapFeedForwardController:
         """Find the target and the rate in ``env``'s observation; ``ValueError`` if it lacks either."""
         unwrapped = env.unwrapped
-        self._target_index = _index(unwrapped, TARGET_LABELS[self.target])
-        self._rate_index = _index(unwrapped, "log10_shear_rate")
+        self._target_index = observation_index(unwrapped, TARGET_LABELS[self.target])
+        self._rate_index = observation_index(unwrapped, "log10_shear_rate")
         self._mapping = unwrapped.mapping
         return self
 
@@ -289,9 +282,9 @@ class AnglePIController:
         (the stress-only id observes neither eta_r nor the rate)."""
         unwrapped = env.unwrapped
         self._indices = (
-            _index(unwrapped, "slog_eta_r"),
-            _index(unwrapped, TARGET_LABELS[self.target]),
-            _index(unwrapped, "log10_shear_rate"),
+            observation_index(unwrapped, "slog_eta_r"),
+            observation_index(unwrapped, TARGET_LABELS[self.target]),
+            observation_index(unwrapped, "log10_shear_rate"),
         )
         self._mapping = unwrapped.mapping
         return self

@@ -332,18 +332,15 @@ def _temporary(path: Path) -> Path:
     return path.with_name(f".{path.name}.{os.getpid()}{io.TEMPORARY_SUFFIX}")
 
 
-def append_frames(path: Path, frames: list[Any]) -> None:
-    """Append ``frames`` to the GSD file at ``path`` (created if missing) atomically: a copy of the file
-    gets them and replaces it (a kill leaves the old file or the new one, never a broken one)."""
-    if not frames:
-        return
+def _write_atomically(path: Path, frames: list[Any], append: bool) -> None:
+    """Write ``frames`` to a temporary copy of ``path`` (after the file's own frames when ``append``) and
+    rename it over ``path``: a kill leaves the old file or the new one, never a broken one."""
     hoomd = _hoomd()
-    path = Path(path)
     tmp = _temporary(path)
     try:
-        if path.exists():
+        if append and path.exists():
             shutil.copyfile(path, tmp)
-        with hoomd.open(str(tmp), "a" if path.exists() else "w") as handle:
+        with hoomd.open(str(tmp), "a" if append and path.exists() else "w") as handle:
             for frame in frames:
                 handle.append(frame)
         _fsync(tmp)
@@ -354,26 +351,22 @@ def append_frames(path: Path, frames: list[Any]) -> None:
         raise
 
 
+def append_frames(path: Path, frames: list[Any]) -> None:
+    """Append ``frames`` to the GSD file at ``path`` (created if missing) atomically: a copy of the file
+    gets them and replaces it (a kill leaves the old file or the new one, never a broken one)."""
+    if frames:
+        _write_atomically(Path(path), frames, append=True)
+
+
 def keep_first_frames(path: Path, count: int) -> None:
     """Cut the GSD file at ``path`` to its first ``count`` frames (rewritten atomically; nothing happens
     when it holds no more)."""
-    hoomd = _hoomd()
     path = Path(path)
     with open_trajectory(path) as handle:
         if len(handle) <= count:
             return
         kept = [handle[index] for index in range(count)]
-    tmp = _temporary(path)
-    try:
-        with hoomd.open(str(tmp), "w") as handle:
-            for frame in kept:
-                handle.append(frame)
-        _fsync(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    _write_atomically(path, kept, append=False)
 
 
 class TrajectoryWriter:
