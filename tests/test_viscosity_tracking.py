@@ -393,9 +393,13 @@ def test_feedforward_picks_y_for_low_targets_and_z_for_high_ones(tiny) -> None:
         (25.0, 1.0, "z"),
         (25.0, 0.2, "z"),
         (30.0, 5.0, "z"),
-        (13.6, 1.0, "x"),
         (10.0, 1.0, "off"),
     ]
+    # A target between the branches is met by whichever branch the map puts closest to it; the map fills in
+    # over sessions (x at Mn 1 gives 13.70, the extensional diagonal near Mn 8 13.61), so only the value is
+    # pinned: within the spacing of the controller's Mn grid on the flattest branch (0.05).
+    name, mason, eta = controller.choose(13.6, 1.0)
+    assert name in ("x", "ext") and eta == pytest.approx(13.6, abs=0.05), (name, mason, eta)
     for target, rate, expected in cases:
         name, mason, eta = controller.choose(target, rate)
         assert name == expected, (target, rate, name, mason, eta)
