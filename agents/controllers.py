@@ -542,7 +542,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             continue
         n = sizes[split] if count is None else count
         if not 1 <= n <= sizes[split]:
-            usage_error(PROG, f"episodes for {option} {split} must be in [1, {sizes[split]}], got {n}")
+            count_flag = "--tune-episodes" if option == "--tune-split" else "--episodes"
+            usage_error(
+                PROG,
+                f"{count_flag} must be in [1, {sizes[split]}] (the {split} split of {option} has "
+                f"{sizes[split]} states), got {n}",
+            )
         counts[split, option] = n
     library = getattr(unwrapped, "library", None)  # a surrogate env has no start-state library
     key = library_key(unwrapped)

@@ -1225,6 +1225,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     }
     if args.play_env is not None:
         check_play_env(args.play_env, play_kwargs, trained)
+    elif play_kwargs:  # a bad argument is named now, not as a traceback from the first episode
+        for run, config in configs.items():
+            try:
+                make_env(config["env_id"], {**config["env_kwargs"], "progress": False}).close()
+            except Exception as exc:
+                usage_error(
+                    PROG, f"--play-kwargs: {config['env_id']} refuses {play_kwargs!r} for {run}: {exc}"
+                )
     for run, run_config in configs.items():
         env_id = run_config["env_id"]
         if (env_id, run_config["env_kwargs"]) == (pareto["env_id"], pareto["env_kwargs"]):

@@ -515,6 +515,17 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         problem = legacy_problem(args.out, identity)
         if problem is not None:
             usage_error(PROG, problem)
+        for path in sorted((args.out / "points").glob("*.json")):  # stored points a rerun reuses
+            try:
+                stored = read_json(path)
+            except (OSError, UnicodeDecodeError, ValueError) as exc:
+                usage_error(
+                    PROG,
+                    f"{path} is damaged ({exc}): delete that file (its point is played again) or give "
+                    "--overwrite",
+                )
+            if not (isinstance(stored, dict) and isinstance(stored.get("episodes"), list)):
+                usage_error(PROG, f"{path} is not a point record: delete that file or give --overwrite")
     claim_out(
         PROG,
         args.out,

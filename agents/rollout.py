@@ -18,9 +18,11 @@ so there is no steady half) add whole-episode metrics:
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -34,6 +36,22 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     import dipenv  # noqa: F401  (registers the ids)
 
     return gym.make(env_id, **(env_kwargs or {}))
+
+
+def record_episodes(path: str | Path) -> list[dict[str, Any]]:
+    """The ``episodes`` of a stored point or run record (``agents.open_loop``, ``agents.controllers``,
+    ``agents.evaluate``: each with its ``trace``); ``ValueError`` naming the file when it is not JSON or
+    holds no such list."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: not a readable JSON record ({exc})") from None
+    episodes = data.get("episodes") if isinstance(data, dict) else None
+    if not isinstance(episodes, list) or not all(
+        isinstance(e, dict) and isinstance(e.get("trace"), dict) for e in episodes
+    ):
+        raise ValueError(f"{path}: holds no list of episodes with traces (a point or run record)")
+    return episodes
 
 
 def library_key(unwrapped: Any) -> str | None:

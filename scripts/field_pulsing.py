@@ -25,11 +25,12 @@ the field energy and the excess by rate bin, one line per file, or per label: fi
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from pathlib import Path
 
 import numpy as np
+
+from agents.rollout import record_episodes
 
 
 def episode_fractions(
@@ -143,7 +144,10 @@ def main(argv: list[str] | None = None) -> None:
     print("|---|---|---|---|---|")
     traces: list[tuple[str, list[dict]]] = []  # per file, in order (two folders may hold equal names)
     for path in args.runs:
-        episodes = json.loads(path.read_text())["episodes"]
+        try:
+            episodes = record_episodes(path)
+        except ValueError as exc:
+            parser.error(str(exc))
         traces.append((path.name, [e["trace"] for e in episodes]))
         rows = np.array(
             [

@@ -19,12 +19,13 @@ removed. Printed per point (Markdown):
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
+
+from agents.rollout import record_episodes
 
 LAGS = (1, 2, 4, 8)
 
@@ -32,7 +33,7 @@ LAGS = (1, 2, 4, 8)
 def summarise(path: Path, bins: list[float]) -> dict[str, object] | None:
     """Noise, its autocorrelation and eta_r by rate bin for one point file (None with one realisation per
     state: no noise to measure)."""
-    episodes = json.loads(path.read_text())["episodes"]
+    episodes = record_episodes(path)
     traces: dict[int, list[np.ndarray]] = defaultdict(list)
     for episode in episodes:
         traces[episode["index"]].append(np.asarray(episode["trace"]["eta_r"], dtype=float))
@@ -79,7 +80,10 @@ def main(argv: list[str] | None = None) -> None:
         parser.error(f"--rate-bins must be at least two increasing edges, got {args.rate_bins!r}")
     rows = []
     for path in args.points:
-        row = summarise(path, bins)
+        try:
+            row = summarise(path, bins)
+        except ValueError as exc:
+            parser.error(str(exc))
         if row is None:
             print(
                 f"{path}: skipped, one realisation per state (agents.open_loop --repeats 2 or more)",

@@ -106,10 +106,16 @@ def table(result: dict[str, dict[str, float]], names: tuple[str, str]) -> str:
             f"| {r['states_higher']}/{n} |"
         )
     s = result["energy_saved"]
-    lines.append(
-        f"\nField energy saved by {a} against {b}: {100 * s['energy_saved']:.0f}% "
-        f"[{100 * s['energy_saved_low']:.0f}, {100 * s['energy_saved_high']:.0f}] ({n} states)."
-    )
+    if math.isfinite(s["energy_saved"]):
+        lines.append(
+            f"\nField energy saved by {a} against {b}: {100 * s['energy_saved']:.0f}% "
+            f"[{100 * s['energy_saved_low']:.0f}, {100 * s['energy_saved_high']:.0f}] ({n} states)."
+        )
+    else:  # B spends no field energy (a saving against nothing is undefined), or a value is not finite
+        lines.append(
+            f"\nField energy saved by {a} against {b}: n/a ({b} spends no field energy, or an energy is not "
+            f"finite) ({n} states)."
+        )
     return "\n".join(lines)
 
 

@@ -45,6 +45,7 @@ import gymnasium as gym
 import numpy as np
 
 import dipenv  # noqa: F401  (registers the ids)
+import sim
 from agents.folders import (
     add_folder_options,
     check_parent,
@@ -111,15 +112,20 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--env", default="dipenv/ThickeningControl-v2")
-    parser.add_argument("--rate", type=float, default=4.0, help="held shear rate (gammadot_ref), > 0")
+    parser.add_argument(
+        "--rate", type=float, default=4.0, help="held shear rate (gammadot_ref), in [1e-3, 1e3]"
+    )
     parser.add_argument("--states", type=int, default=4, help="first test start states, >= 2")
     parser.add_argument("--intervals", type=int, default=16, help="intervals per episode, > --skip")
     parser.add_argument("--skip", type=int, default=4, help="leading intervals left out of the means, >= 0")
     parser.add_argument("--protocols", default="steady:0.2,pulse:0.1:off,steady:0.1")
     add_folder_options(parser, "--out")
     args = parser.parse_args(argv)
-    if not (math.isfinite(args.rate) and args.rate > 0):
-        parser.error(f"--rate must be a finite number > 0, got {args.rate}")
+    if not (math.isfinite(args.rate) and sim.MIN_SHEAR_RATE <= args.rate <= sim.MAX_SHEAR_RATE):
+        parser.error(
+            f"--rate must be in [{sim.MIN_SHEAR_RATE:g}, {sim.MAX_SHEAR_RATE:g}] (the simulator's shear "
+            f"rates), got {args.rate}"
+        )
     if args.states < 2:
         parser.error(f"--states must be >= 2 (paired standard errors), got {args.states}")
     if not 0 <= args.skip < args.intervals:

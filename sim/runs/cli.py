@@ -207,7 +207,8 @@ def _seed_list(text: str) -> list[int]:
             )
         return list(range(1, count + 1))
     try:
-        return parse_seeds(text)
+        seeds = parse_seeds(text)
+        listed = [seed for item in text.split(",") for seed in parse_seeds(item)]
     except ValueError as exc:
         if str(exc).startswith("at most"):
             raise argparse.ArgumentTypeError(str(exc)) from None
@@ -215,6 +216,12 @@ def _seed_list(text: str) -> list[int]:
             "must be a count (3 = seeds 1, 2, 3), a list (1,4) or ranges (0-4, 0,2,5-7) of non-negative "
             f"integers, got {text!r}"
         ) from None
+    twice = sorted({seed for seed in listed if listed.count(seed) > 1})
+    if twice:  # as the other lists of a sweep: each value once
+        raise argparse.ArgumentTypeError(
+            f"lists seed {', '.join(str(seed) for seed in twice)} twice in {text!r} (each seed once)"
+        )
+    return seeds
 
 
 def positive_int(text: str) -> int:
