@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_helpers import run_cli
 
 import sim.runs.run
 from sim import Simulation, SimulationConfig
@@ -34,16 +35,6 @@ PREFIX = "python -m sim run: error: "
 FIELD_NAMES = re.compile(
     r"\b(n_particles|volume_fraction|mason_number|field_direction|shear_rate|transient_strain|time_step)\b"
 )
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """``main(["run", *args])`` in this process: (exit status, stdout, stderr)."""
-    try:
-        status = main(["run", *args])
-    except SystemExit as exc:
-        status = exc.code if isinstance(exc.code, int) else 1
-    captured = capsys.readouterr()
-    return status, captured.out, captured.err
 
 
 def assert_refused(status: int, err: str, needle: str) -> None:

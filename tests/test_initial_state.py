@@ -18,9 +18,9 @@ from pathlib import Path
 import gsd.hoomd
 import numpy as np
 import pytest
+from cli_helpers import run_cli
 
 from sim import SimulationConfig, SimulationState, run_simulation
-from sim.runs.cli import main
 from sim.runs.folder import MANIFEST
 from sim.runs.initial_state import (
     InitialState,
@@ -39,16 +39,6 @@ FIELD_NAMES = re.compile(
     r"\b(n_particles|volume_fraction|mason_number|field_direction|shear_rate|snapshot_every|"
     r"trajectory_every|field_from_state)\b"
 )
-
-
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    """``main(["run", *args])`` in this process: (exit status, stdout, stderr)."""
-    try:
-        status = main(["run", *args])
-    except SystemExit as exc:
-        status = exc.code if isinstance(exc.code, int) else 1
-    captured = capsys.readouterr()
-    return status, captured.out, captured.err
 
 
 def assert_refused(status: int, err: str, needle: str) -> None:
