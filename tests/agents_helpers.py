@@ -1,10 +1,10 @@
-"""Helpers shared by the tests of the agents' commands (``test_agents_folders.py`` and
-``test_agents_inputs.py``): the tiny env ids, a script of ``scripts/`` loaded as a module, and a command's
-refusal (exit 2)."""
+"""Helpers shared by the tests of the agents' commands and of ``scripts/``: the tiny env ids, a script of
+``scripts/`` loaded as a module, and a command's refusal (exit 2)."""
 
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -15,11 +15,16 @@ ENV = "dipenv/FieldMagnitudeTiny-v0"
 TINY = "dipenv/ThickeningControlTiny-v0"
 
 
-def load_script(name: str) -> Any:
-    """``scripts/<name>.py`` as a module (the scripts are not a package)."""
+def load_script(name: str, cached: bool = False) -> Any:
+    """``scripts/<name>.py`` as a module (the scripts are not a package), registered in ``sys.modules``
+    under ``name`` (dataclasses and pickling look their module up there). A fresh module each call, unless
+    ``cached``: then the one loaded before, if any."""
+    if cached and name in sys.modules:
+        return sys.modules[name]
     spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
     spec.loader.exec_module(module)
     return module
 

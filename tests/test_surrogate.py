@@ -10,10 +10,8 @@ they need neither the simulator's data nor a fit.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-import sys
 import warnings
 from pathlib import Path
 from types import ModuleType
@@ -22,6 +20,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 import pytest
+from agents_helpers import load_script
 from gymnasium.utils.env_checker import check_env
 
 import dipenv
@@ -53,14 +52,7 @@ TINY = "dipenv/ThickeningControlTiny-v0"
 
 
 def script(name: str) -> ModuleType:
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script(name, cached=True)
 
 
 # -- the known system ----------------------------------------------------------------------------------------

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import ModuleType
 
@@ -10,6 +9,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
+from agents_helpers import load_script
 
 import dipenv  # noqa: F401  (registers the ids)
 
@@ -18,13 +18,7 @@ TINY = "dipenv/ThickeningControlTiny-v0"
 
 
 def data_script() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "surrogate_data_script", ROOT / "scripts" / "surrogate_data.py"
-    )
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script("surrogate_data")
 
 
 def policy_folder(root: Path, seed: int) -> Path:

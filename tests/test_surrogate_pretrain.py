@@ -5,14 +5,13 @@ settings are refused."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
-import sys
 from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
+from agents_helpers import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 TINY = [
@@ -26,15 +25,7 @@ TINY = [
 
 
 def script() -> ModuleType:
-    name = "surrogate_pretrain"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_script("surrogate_pretrain", cached=True)
 
 
 @pytest.fixture(autouse=True)
