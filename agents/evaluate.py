@@ -1226,7 +1226,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if args.play_env is not None:
         check_play_env(args.play_env, play_kwargs, trained)
     elif play_kwargs:  # a bad argument is named now, not as a traceback from the first episode
+        tried: set[tuple[str, str]] = set()  # the seeds of a study share their env: make it once
         for run, config in configs.items():
+            key = (config["env_id"], json.dumps(config["env_kwargs"], sort_keys=True))
+            if key in tried:
+                continue
+            tried.add(key)
             try:
                 make_env(config["env_id"], {**config["env_kwargs"], "progress": False}).close()
             except Exception as exc:
