@@ -149,6 +149,19 @@ def _normalised_source(path: Path) -> bytes:
     return ast.dump(tree, include_attributes=False).encode()
 
 
+def pick_start_index(
+    options: dict[str, Any], size: int, start_state: str, cycle: int, rng: np.random.Generator
+) -> tuple[Any, int]:
+    """The start-state index of a reset, and the cycle counter after it: ``options["index"]`` when given
+    (unchecked here), else the next of the cycle (``start_state == "cycle"``), else a draw from ``rng``. The
+    simulator envs and the surrogate envs share it, so one seed picks one index in both."""
+    if "index" in options:
+        return options["index"], cycle
+    if start_state == "cycle":
+        return cycle % size, cycle + 1
+    return int(rng.integers(size)), cycle
+
+
 def source_digest(root: Path, exclude: frozenset[str] = frozenset()) -> str:
     """SHA-256 (16 hex digits) of the relative paths and normalised contents (:func:`_normalised_source`:
     code without docstrings, tables without comments) of the ``.py`` files and data tables

@@ -46,7 +46,14 @@ from dipenv.rewards import (
     ViscosityTargetReward,
     default_target_viscosity,
 )
-from dipenv.state_library import DEFAULT_SPLIT_SIZES, SPLITS, StartState, StateLibrary, check_split_sizes
+from dipenv.state_library import (
+    DEFAULT_SPLIT_SIZES,
+    SPLITS,
+    StartState,
+    StateLibrary,
+    check_split_sizes,
+    pick_start_index,
+)
 
 DEFAULT_N_PARTICLES = 64
 DEFAULT_VOLUME_FRACTION = 0.45
@@ -388,13 +395,7 @@ class FieldControlEnv(gym.Env[np.ndarray, np.ndarray]):
         split = options.get("split", self.split)
         phi = float(options.get("volume_fraction", self.base_config.volume_fraction))
         size = self.split_sizes[split]
-        if "index" in options:
-            index = options["index"]
-        elif self.start_state == "cycle":
-            index = self._cycle % size
-            self._cycle += 1
-        else:
-            index = int(self.np_random.integers(size))
+        index, self._cycle = pick_start_index(options, size, self.start_state, self._cycle, self.np_random)
         self.reward_function = self._reward_for(phi)
         start = self._start_state(phi, split, int(index))
         simulation = self._episode_simulation(phi, start)

@@ -48,7 +48,7 @@ from dipenv.schedules import (
     schedule_to_dict,
     split_seeds,
 )
-from dipenv.state_library import DEFAULT_SPLIT_SIZES, SPLITS, check_split_sizes
+from dipenv.state_library import DEFAULT_SPLIT_SIZES, SPLITS, check_split_sizes, pick_start_index
 from dipenv.surrogate.features import N_DYNAMIC, IntervalTable, interval_table, inverse_signed_log
 from dipenv.surrogate.models import SurrogateModel, default_model_path, load_model
 
@@ -290,13 +290,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         if split not in SPLITS:
             raise ValueError(f"options['split'] must be one of {', '.join(SPLITS)}, got {split!r}")
         size = self.split_sizes[split]
-        if "index" in options:
-            index = options["index"]
-        elif self.start_state == "cycle":
-            index = self._cycle % size
-            self._cycle += 1
-        else:
-            index = int(self.np_random.integers(size))
+        index, self._cycle = pick_start_index(options, size, self.start_state, self._cycle, self.np_random)
         if isinstance(index, bool) or not isinstance(index, int | np.integer) or not 0 <= index < size:
             raise ValueError(f"options['index'] must be an integer in [0, {size}), got {index!r}")
         own = options.get("schedule")
