@@ -3,7 +3,7 @@
     python -m agents.controllers --env dipenv/ThickeningControl-v2 --controller feedforward --out DIR
         [--grid mason_star=0.5,1,2] [--tune-split validation] [--split test] [--episodes N]
         [--tune-episodes N] [--repeats K] [--tune-repeats K] [--schedules FILE] [--tune-schedules FILE]
-        [--env-kwargs JSON] [--workers W] [--scheduler ADDRESS] [--resume | --overwrite]
+        [--env-kwargs JSON] [--model FILE] [--workers W] [--scheduler ADDRESS] [--resume | --overwrite]
 
 Four controllers, each a policy ``obs -> action`` over the raw observation of a
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` (read by label, so ``history_length`` does
@@ -25,7 +25,8 @@ not matter):
   (:mod:`agents.mpc`): each interval the best of sampled action sequences over a horizon, scored by the
   env's reward on the surrogate's rollouts, the first action applied. It reads the frame's ``eta_r``,
   normal stresses and microstructure (``ThickeningControl``, not the stress-only env) and the episode's
-  rate schedule.
+  rate schedule. ``--model FILE`` names the surrogate it plans with (default: the surrogate env's own model,
+  or the shipped one on the simulator); the file's SHA-256 joins the identity.
 
 * :class:`RatePulseController` ("pulse"): a hand-built version of what the trained PPO policies do
   (``results/thickening_control/v2/README.md``): at observed rates at or above ``rate_on`` the field
@@ -289,14 +290,17 @@ class RatePulseController:
         return np.array([mapping.action_for(mason)], dtype=np.float32)
 
 
-def make_controller(kind: str, params: dict[str, float]) -> Any:
+def make_controller(kind: str, params: dict[str, float], model: str | None = None) -> Any:
     """A controller of ``kind`` (one of :data:`CONTROLLERS`; ``"mpc"``: :class:`agents.mpc.MPCController`)
-    with ``params``; ``ValueError`` naming a bad kind or parameter."""
+    with ``params``; ``model``: the surrogate model file MPC plans with (``"mpc"`` only; default: the
+    env's own or the shipped one); ``ValueError`` naming a bad kind or parameter."""
+    if model is not None and kind != "mpc":
+        raise ValueError(f"--model is the planner's surrogate model: mpc only, not {kind}")
     if kind == "mpc":
         from agents.mpc import MPCController
 
         settings: dict[str, Any] = dict(params)  # the grid's floats; MPCController checks them
-        return MPCController(**settings)
+        return MPCController(**settings, model=model)
     if kind == "feedforward":
         return FeedForwardController(**params)
     if kind == "pi":
@@ -315,7 +319,7 @@ def run_point(payload: dict[str, Any]) -> dict[str, Any]:
     task); reuses the episodes of a stored record with the same identity and plays the missing ones
     (:func:`agents.open_loop.play_missing`)."""
     env = make_env(payload["env_id"], payload["env_kwargs"])
-    controller = make_controller(payload["controller"], payload["params"]).bind(env)
+    controller = make_controller(payload["controller"], payload["params"], payload.get("model")).bind(env)
     record = {
         "identity": _finite(payload["identity"]),
         "label": payload["label"],
@@ -443,6 +447,14 @@ def build_parser() -> argparse.ArgumentParser:
         "schedules (default: the split's own)",
     )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
+    parser.add_argument(
+        "--model",
+        default=None,
+        metavar="FILE",
+        help="mpc only: the surrogate model (.npz) the planner rolls out, e.g. dipenv/data/surrogate_v1.npz "
+        "(default: the surrogate env's own model, or the shipped one on the simulator); its SHA-256 joins "
+        "the identity",
+    )
     parser.add_argument("--out", required=True, type=directory)
     parser.add_argument("--workers", type=integer_at_least(1), default=1, help="local worker processes, >= 1")
     parser.add_argument("--scheduler", type=scheduler_address, default=None, help="Dask scheduler address")
@@ -511,9 +523,19 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         usage_error(PROG, "--out must name a folder for the results, got the current directory")
     output_directory(PROG, args.out)
     env_kwargs = json_object(PROG, "--env-kwargs", args.env_kwargs)
+    model = None if args.model is None else str(args.model)
+    if model is not None and args.controller != "mpc":
+        usage_error(
+            PROG, f"--model is the planner's surrogate model: --controller mpc only, not {args.controller}"
+        )
+    if model is not None and not Path(model).is_file():
+        usage_error(
+            PROG, f"--model {model}: no such file (a surrogate model .npz, e.g. dipenv/data/surrogate_v1.npz)"
+        )
+    model_sha = None if model is None else hashlib.sha256(Path(model).read_bytes()).hexdigest()[:16]
     try:
         for params in grid_points(parse_grid(args.controller, args.grid, eta_cap=1.0)):
-            make_controller(args.controller, params)  # the arguments, checked before the env is made
+            make_controller(args.controller, params, model)  # the arguments, checked before the env is made
     except ValueError as error:
         usage_error(PROG, str(error))
     env = checked_env(PROG, args.env, env_kwargs, progress=False)
@@ -523,7 +545,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     grid = parse_grid(args.controller, args.grid, eta_cap=unwrapped.reward_function.target_viscosity)
     points = grid_points(grid)
     try:
-        make_controller(args.controller, points[0]).bind(env)
+        make_controller(args.controller, points[0], model).bind(env)
     except ValueError as error:
         usage_error(PROG, f"--controller {args.controller} on --env {args.env}: {error}")
     sizes = unwrapped.split_sizes
@@ -581,6 +603,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             "episodes": test_n,
             **({"tune_schedules": tune_file.digest} if tune_file is not None else {}),
             **({"schedules": test_file.digest} if test_file is not None else {}),
+            **({"model_sha256": model_sha} if model_sha is not None else {}),
         },
     )
     if not args.overwrite:
@@ -601,9 +624,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for folder in ("tuning", "points"):
         (args.out / folder).mkdir(parents=True, exist_ok=True)
     compile_notice(args.scheduler)
-    fixed = {split for (split, option) in counts if files[option] is None}
-    if fixed and callable(library):
-        library().ensure(sorted(fixed), progress=True)
+    fixed: dict[str, int] = {}  # split -> the states played from it (its first n)
+    for (split, option), n in counts.items():
+        if files[option] is None:
+            fixed[split] = max(n, fixed.get(split, 0))
+    if callable(library):
+        for split in sorted(fixed):
+            library().ensure([split], progress=True, count=fixed[split])
     for (_, option), n in counts.items():
         given = files[option]
         if given is not None:
@@ -625,6 +652,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             "env_kwargs": {**env_kwargs, "progress": False},
             "controller": args.controller,
             "params": params,
+            **({"model": model} if model is not None else {}),
             "split": split,
             "episodes": episodes,
             "label": label,
@@ -639,6 +667,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 "split": split,
                 "episodes": episodes,
                 "schedules": digests[option],
+                **({"model_sha256": model_sha} if model_sha is not None else {}),
             },
         }
 
@@ -681,6 +710,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         "tune_split": args.tune_split,
         "tune_episodes": tune_n,
         "tuned_params": best["params"],
+        **({"model": model, "model_sha256": model_sha} if model is not None else {}),
         "tune_return": mean_return(best),
         "split": args.split,
         "label": tuned["label"],

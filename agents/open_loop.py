@@ -541,7 +541,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     compile_notice(args.scheduler)
     if schedules is None:
         if callable(getattr(unwrapped, "library", None)):  # the surrogate envs have none
-            unwrapped.library().ensure([args.split], progress=True)  # once, before the workers start
+            # once, before the workers start; only the states played
+            unwrapped.library().ensure([args.split], progress=True, count=episodes)
     else:
         write_json(args.out / "schedules.json", schedules.resolved())
         prepare_states(unwrapped, schedules, episodes)

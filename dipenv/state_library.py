@@ -336,19 +336,34 @@ class StateLibrary:
             raise ValueError(f"index must be an integer in [0, {size}) for split {split!r}, got {index!r}")
 
     # -- generation ----------------------------------------------------------------------------------------
-    def missing(self, splits: Iterable[str] = DEVELOPMENT_SPLITS) -> list[tuple[str, int]]:
-        """``(split, index)`` of the states of ``splits`` (default: all but ``fresh``) not on disk yet."""
+    def missing(
+        self, splits: Iterable[str] = DEVELOPMENT_SPLITS, count: int | None = None
+    ) -> list[tuple[str, int]]:
+        """``(split, index)`` of the states of ``splits`` (default: all but ``fresh``) not on disk yet;
+        ``count``: only among the first ``count`` states of each split (default: all of them)."""
         splits = list(splits)
         for split in splits:
             if split not in SPLITS:
                 raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
-        return [(s, i) for s in splits for i in range(self.split_sizes[s]) if not self.path(s, i).exists()]
+        if count is not None and (isinstance(count, bool) or not isinstance(count, int) or count < 1):
+            raise ValueError(f"count must be an integer >= 1 (the first states of each split), got {count!r}")
+        return [
+            (s, i)
+            for s in splits
+            for i in range(self.split_sizes[s] if count is None else min(count, self.split_sizes[s]))
+            if not self.path(s, i).exists()
+        ]
 
     def ensure(
-        self, splits: Iterable[str] = DEVELOPMENT_SPLITS, progress: bool = True, workers: int = 1
+        self,
+        splits: Iterable[str] = DEVELOPMENT_SPLITS,
+        progress: bool = True,
+        workers: int = 1,
+        count: int | None = None,
     ) -> None:
         """Generate the missing states of ``splits`` (default: all but ``fresh``, which is generated only
-        when named; progress bar on stderr unless ``progress=False``).
+        when named; progress bar on stderr unless ``progress=False``); ``count``: only the first ``count``
+        states of each split (an evaluation on its first ``n`` episodes needs no more).
 
         ``workers > 1`` pre-shears that many states at once in separate processes (each state is
         independent, so the files are the same as with one worker). A state that another process wrote
@@ -359,7 +374,8 @@ class StateLibrary:
         for split in splits:
             if split not in SPLITS:
                 raise ValueError(f"split must be one of {', '.join(SPLITS)}, got {split!r}")
-        self._generate_missing(lambda: self.missing(splits), progress, workers)
+        self.missing(splits, count)  # the arguments, checked before anything is discarded
+        self._generate_missing(lambda: self.missing(splits, count), progress, workers)
 
     def _generate_missing(
         self, missing: Callable[[], list[tuple[str, int]]], progress: bool, workers: int

@@ -119,6 +119,18 @@ def test_the_fresh_states_are_generated_only_when_asked_for(tmp_path: Path) -> N
     assert (start.seed, start.split, start.index) == (300_002, "fresh", 2)
     assert [p.name for p in library.directory.glob("fresh_*.npz")] == ["fresh_00002_seed300002.npz"]
     assert len(library.missing(["fresh"])) == DEFAULT_FRESH_SIZE - 1
+    # an evaluation on the first n episodes makes only those states (not the split's 128)
+    assert library.missing(["fresh"], count=3) == [("fresh", 0), ("fresh", 1)]
+    library.ensure(["fresh"], progress=False, count=2)
+    assert sorted(p.name[:11] for p in library.directory.glob("fresh_*.npz")) == [
+        "fresh_00000",
+        "fresh_00001",
+        "fresh_00002",
+    ]
+    assert library.missing(["fresh"], count=3) == [] and library.missing(["test"], count=10**6) == []
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ValueError, match="count must be an integer >= 1"):
+            library.ensure(["fresh"], progress=False, count=bad)  # type: ignore[arg-type]
     moved = perturbed_state(start.state, config.box_length, "fresh", 2, 1)  # realisations know the split
     assert 0 < np.max(np.abs(moved.positions - start.state.positions)) < 1e-7
 
@@ -147,3 +159,19 @@ def test_the_tiny_env_pairs_fresh_state_k_with_fresh_schedule_k(tmp_path: Path) 
     standard = gym.make("dipenv/ThickeningControl-v2", progress=False).unwrapped
     assert standard.fixed_schedule("fresh", count - 1) == fixed_schedules("fresh")[count - 1]
     env.close()
+
+
+def test_an_evaluation_on_the_first_n_fresh_episodes_makes_only_their_states(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``agents.open_loop --split fresh --episodes 1`` pre-shears fresh state 0 alone, not the split's 128
+    (the final evaluation takes the first 64: half the split's cost of states)."""
+    from agents import open_loop
+
+    monkeypatch.setenv("DIPENV_CACHE_DIR", str(tmp_path / "cache"))
+    open_loop.main(
+        ["--env", "dipenv/ThickeningControlTiny-v0", "--split", "fresh", "--episodes", "1", "--mason", "off"]
+        + ["--out", str(tmp_path / "out")]
+    )
+    made = sorted(p.name[:11] for p in (tmp_path / "cache").rglob("*.npz"))
+    assert made == ["fresh_00000"]

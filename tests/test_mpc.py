@@ -1,7 +1,8 @@
 """agents.mpc (issue 43): model-predictive control through the surrogate. The vectorised rollout it uses is
 the env's own step path (from an episode's start, and mid-episode after a field); on the surrogate env it
 beats the best constant field; the same seed gives the same actions; envs it cannot control are refused;
-it binds to the simulator env; ``agents.controllers --controller mpc`` tunes and plays it."""
+it binds to the simulator env; ``agents.controllers --controller mpc`` tunes and plays it, with the env's
+model or one named by ``--model``."""
 
 from __future__ import annotations
 
@@ -131,3 +132,37 @@ def test_the_controllers_command_tunes_and_plays_mpc(tmp_path: Path) -> None:
     assert len(list((out / "tuning").glob("*.json"))) == 2
     played = json.loads((out / "points" / f"{summary['label']}.json").read_text())
     assert len(played["episodes"]) == 2
+
+
+def test_the_controllers_command_plans_with_a_named_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``--model FILE`` is the planner's model: its digest joins the identity (another file is refused in
+    the same folder), the planner loads it (the actions differ from the env's own model's), and only MPC
+    takes it; a missing file is named."""
+    v1 = Path(dipenv.__file__).parent / "data" / "surrogate_v1.npz"
+    base = ["--env", SURROGATE, "--controller", "mpc", "--grid", "horizon=2", "candidates=8", "samples=1"]
+    base += ["--tune-episodes", "1", "--split", "validation", "--episodes", "1"]
+    own = controllers.main([*base, "--out", str(tmp_path / "own")])
+    named = controllers.main([*base, "--model", str(v1), "--out", str(tmp_path / "v1")])
+    assert "model_sha256" not in own and len(named["model_sha256"]) == 16
+    manifest = json.loads((tmp_path / "v1" / "manifest.json").read_text())
+    assert manifest["params"]["model_sha256"] == named["model_sha256"]
+    actions = [
+        json.loads((tmp_path / d / "points" / f"{s['label']}.json").read_text())["episodes"][0]["trace"][
+            "action"
+        ]
+        for d, s in (("own", own), ("v1", named))
+    ]
+    assert not np.allclose(np.asarray(actions[0], float), np.asarray(actions[1], float))
+    with pytest.raises(SystemExit) as refused:  # another model in the v1 folder: another identity
+        controllers.main([*base, "--out", str(tmp_path / "v1")])
+    assert refused.value.code == 2
+    pulse = ["--env", SURROGATE, "--controller", "pulse", "--tune-episodes", "1", "--split", "validation"]
+    for argv, message in (
+        ([*base, "--model", str(tmp_path / "none.npz")], "no such file"),
+        ([*pulse, "--model", str(v1)], "mpc only"),
+    ):
+        with pytest.raises(SystemExit) as error:
+            controllers.main([*argv, "--out", str(tmp_path / "bad")])
+        assert error.value.code == 2 and message in capsys.readouterr().err

@@ -1,0 +1,90 @@
+#!/usr/bin/env bash
+# Issue 43: the final evaluation of thickening control on the held-out fresh split, in the reference
+# physics (docs/thickening_control.md#final-evaluation-on-the-fresh-split). Nothing was tuned, selected or
+# designed on this split; every parameter below was chosen on validation (or, for the pre-issue-43
+# controllers, on validation then looked at on test), as the docs' table of splits says.
+#
+#     scripts/fresh_evaluation.sh [STAGE ...]    # default: every stage, in order; WORKERS=1 EPISODES=64
+#
+# Stages (each resumes: every command below reuses the episodes its folder holds, point by point and
+# episode by episode, so the study runs in chunks across sessions: stop it (pkill -TERM -f fresh_),
+# commit results/thickening_control/v2/fresh (runs/ and points/ included), rerun the same command):
+#   constants    (first making the first EPISODES fresh start states: N = 300, pre-sheared, about 1 min
+#                each) constant fields: Mn_ref 0.5 (the best on validation), off, then 1, 2 and 0.3 (the front)
+#   controllers  the hand-made controllers at their validation-tuned points, each re-played on the 8
+#                validation states first (under the current start-state library) and then on fresh:
+#                pulse (rate_on 2.5, Mn_steady 0.5), feed-forward (Mn* 1), MPC through surrogate v1
+#                (horizon 8, 128 candidates, 3 iterations: tuned on the surrogate's validation episodes,
+#                results/thickening_control/v2/mpc_surrogate_tuning), PI (setpoint 7.7, kp 6, ki 2)
+#   policies     the main evaluation: PPO pretrained on surrogate v1 only (5 seeds, no simulator step)
+#                and the v2 PPO (5 seeds, 10^4 coarse simulator steps each), their mean actions, against
+#                every row above -> fresh/evaluation
+#   others       the other trained rows of the v2 study: SAC (its sampled actions, the policy it
+#                optimises) and PPO on the stress-only id with 4 frames of history -> fresh/evaluation_others
+#   summary      fresh/evaluation/summary.md (scripts/thickening_summary.py)
+#
+# Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
+# constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
+# 1 min per episode: states ~1 h, constants ~5 h, controllers ~5 h, policies ~11 h, others ~11 h.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-.venv/bin/python}
+W=${WORKERS:-1}
+N=${EPISODES:-64}
+ENV=dipenv/ThickeningControl-v2
+V2=results/thickening_control/v2
+F=$V2/fresh
+stages=("$@")
+[ ${#stages[@]} -gt 0 ] || stages=(constants controllers policies others summary)
+log() { echo "== $(date -u +%FT%TZ) fresh_evaluation.sh: $*"; }
+controllers=("$F/pulse" "$F/feedforward" "$F/mpc" "$F/pi")
+
+for stage in "${stages[@]}"; do
+    case "$stage" in
+    constants)
+        for mason in 0.5 off 1 2 0.3; do
+            log "constant field Mn_ref $mason"
+            "$PY" -m agents.open_loop --env "$ENV" --split fresh --episodes "$N" --mason "$mason" \
+                --workers "$W" --out "$F/open_loop"
+        done
+        ;;
+    controllers)
+        one() {
+            local name=$1
+            shift
+            log "controller $name"
+            "$PY" -m agents.controllers --env "$ENV" "$@" --tune-split validation --tune-episodes 8 \
+                --split fresh --episodes "$N" --workers 1 --out "$F/$name"
+        }
+        one pulse --controller pulse --grid rate_on=2.5 mason_steady=0.5
+        one feedforward --controller feedforward --grid mason_star=1
+        one mpc --controller mpc --grid horizon=8 candidates=128 iterations=3 samples=4 seed=0 \
+            --model dipenv/data/surrogate_v1.npz
+        one pi --controller pi --grid setpoint=7.7 kp=6 ki=2
+        ;;
+    policies)
+        log "trained policies: surrogate-pretrained PPO and the v2 PPO"
+        "$PY" -m agents.evaluate "$V2/surrogate_pretrain/ppo_v1" "$V2/rl/ppo" --play-env "$ENV" \
+            --split fresh --episodes "$N" --baseline "$F/open_loop" --controllers "${controllers[@]}" \
+            --workers "$W" --out "$F/evaluation"
+        ;;
+    others)
+        log "other trained rows: SAC (sampled actions) and stress-only PPO with history"
+        "$PY" -m agents.evaluate "$V2/rl/sac" --actions sampled --play-env "$ENV" \
+            --split fresh --episodes "$N" --baseline "$F/open_loop" --controllers "$F/pulse" \
+            --workers "$W" --out "$F/evaluation_sac_sampled"
+        "$PY" -m agents.evaluate "$V2/rl/ppo_stress_only_history" \
+            --play-env dipenv/ThickeningControlStressOnly-v2 --play-kwargs '{"history_length": 4}' \
+            --split fresh --episodes "$N" --baseline "$F/open_loop" --controllers "$F/pulse" \
+            --workers "$W" --out "$F/evaluation_stress_only"
+        ;;
+    summary)
+        "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_sac_sampled" \
+            > "$F/evaluation/summary.md"
+        ;;
+    *)
+        echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies others summary)" >&2
+        exit 2
+        ;;
+    esac
+done
