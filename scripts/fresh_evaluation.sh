@@ -10,7 +10,7 @@
 # episode by episode, so the study runs in chunks across sessions: stop it (pkill -TERM -f fresh_),
 # commit results/thickening_control/v2/fresh (runs/ and points/ included), rerun the same command):
 #   constants    (first making the first EPISODES fresh start states: N = 300, pre-sheared, about 1 min
-#                each) constant fields: Mn_ref 0.5 (the best on validation), off, then 1, 2 and 0.3 (the front)
+#                each) constant fields: Mn_ref 0.5 (the best on validation), off and 1
 #   controllers  the hand-made controllers at their validation-tuned points, each re-played on the 8
 #                validation states first (under the current start-state library) and then on fresh:
 #                pulse (rate_on 2.5, Mn_steady 0.5), feed-forward (Mn* 1), MPC through surrogate v1
@@ -19,13 +19,17 @@
 #   policies     the main evaluation: PPO pretrained on surrogate v1 only (5 seeds, no simulator step)
 #                and the v2 PPO (5 seeds, 10^4 coarse simulator steps each), their mean actions, against
 #                every row above -> fresh/evaluation
+#   front        constant fields Mn_ref 2 and 0.3, the ends of the front
 #   others       the other trained rows of the v2 study: SAC (its sampled actions, the policy it
-#                optimises) and PPO on the stress-only id with 4 frames of history -> fresh/evaluation_others
-#   summary      fresh/evaluation/summary.md (scripts/thickening_summary.py)
+#                optimises) and PPO on the stress-only id with 4 frames of history
+#                -> fresh/evaluation_sac_sampled, fresh/evaluation_stress_only
+#   summary      the evaluations' tables again (with every constant the folder then holds), and
+#                fresh/evaluation/summary.md (scripts/thickening_summary.py)
 #
 # Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
 # constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
-# 1 min per episode: states ~1 h, constants ~5 h, controllers ~5 h, policies ~11 h, others ~11 h.
+# 1 min per episode: states ~1 h, constants ~3 h, controllers ~5 h,
+# policies ~11 h, front ~2 h, others ~11 h.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-.venv/bin/python}
@@ -35,14 +39,14 @@ ENV=dipenv/ThickeningControl-v2
 V2=results/thickening_control/v2
 F=$V2/fresh
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(constants controllers policies others summary)
+[ ${#stages[@]} -gt 0 ] || stages=(constants controllers policies front others summary)
 log() { echo "== $(date -u +%FT%TZ) fresh_evaluation.sh: $*"; }
 controllers=("$F/pulse" "$F/feedforward" "$F/mpc" "$F/pi")
 
 for stage in "${stages[@]}"; do
     case "$stage" in
     constants)
-        for mason in 0.5 off 1 2 0.3; do
+        for mason in 0.5 off 1; do
             log "constant field Mn_ref $mason"
             "$PY" -m agents.open_loop --env "$ENV" --split fresh --episodes "$N" --mason "$mason" \
                 --workers "$W" --out "$F/open_loop"
@@ -62,6 +66,13 @@ for stage in "${stages[@]}"; do
             --model dipenv/data/surrogate_v1.npz
         one pi --controller pi --grid setpoint=7.7 kp=6 ki=2
         ;;
+    front)
+        for mason in 2 0.3; do
+            log "constant field Mn_ref $mason"
+            "$PY" -m agents.open_loop --env "$ENV" --split fresh --episodes "$N" --mason "$mason" \
+                --workers "$W" --out "$F/open_loop"
+        done
+        ;;
     policies)
         log "trained policies: surrogate-pretrained PPO and the v2 PPO"
         "$PY" -m agents.evaluate "$V2/surrogate_pretrain/ppo_v1" "$V2/rl/ppo" --play-env "$ENV" \
@@ -79,11 +90,12 @@ for stage in "${stages[@]}"; do
             --workers "$W" --out "$F/evaluation_stress_only"
         ;;
     summary)
+        "$0" policies others  # every episode is stored: this only rewrites the tables
         "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_sac_sampled" \
             > "$F/evaluation/summary.md"
         ;;
     *)
-        echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies others summary)" >&2
+        echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies front others summary)" >&2
         exit 2
         ;;
     esac
