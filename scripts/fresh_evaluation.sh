@@ -9,7 +9,7 @@
 # Stages (each resumes: every command below reuses the episodes its folder holds, point by point and
 # episode by episode, so the study runs in chunks across sessions: stop it (pkill -TERM -f fresh_),
 # commit results/thickening_control/v2/fresh (runs/ and points/ included), rerun the same command):
-#   constants    (first making the first EPISODES fresh start states: N = 300, pre-sheared, about 1 min
+#   constants    (first making the first EPISODES fresh start states: N = 300, pre-sheared, a few seconds
 #                each) constant fields: Mn_ref 0.5 (the best on validation), off and 1
 #   controllers  the hand-made controllers at their validation-tuned points, each re-played on the 8
 #                validation states first (under the current start-state library) and then on fresh:
@@ -28,7 +28,7 @@
 #
 # Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
 # constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
-# 1 min per episode: states ~1 h, constants ~3 h, controllers ~5 h,
+# 1 min per episode: constants ~3 h, controllers ~5 h,
 # policies ~11 h, front ~2 h, others ~11 h.
 set -euo pipefail
 cd "$(dirname "$0")/.."
