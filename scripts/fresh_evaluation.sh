@@ -75,7 +75,7 @@ for stage in "${stages[@]}"; do
         ;;
     policies)
         log "trained policies: surrogate-pretrained PPO and the v2 PPO"
-        "$PY" -m agents.evaluate "$V2/surrogate_pretrain/ppo_v1" "$V2/rl/ppo" --play-env "$ENV" \
+        "$PY" -m agents.evaluate "$V2/surrogate_pretrain/surrogate_ppo_v1" "$V2/rl/ppo" --play-env "$ENV" \
             --split fresh --episodes "$N" --baseline "$F/open_loop" --controllers "${controllers[@]}" \
             --workers "$W" --out "$F/evaluation"
         ;;
