@@ -82,7 +82,9 @@ the command's arguments but ``--workers``/``--scheduler`` (RUN_DIRS, ``--baselin
 ``--validation-baseline`` as paths, compared by the files they name; the split, ``--episodes``,
 ``--repeats``, ``--policy-repeats``, ``--model``, ``--actions``, ``--play-kwargs``, ``--play-env``, and the
 digest of ``--schedules``). A rerun of the same
-arguments continues (per-run results are reused); other arguments, or another command's folder, are refused
+arguments continues (per-run results are reused, matched by the model's and statistics' contents, the
+env, states and play arguments, not by where the run folder lies: a committed evaluation resumes in
+another checkout); other arguments, or another command's folder, are refused
 (exit 2) unless ``--overwrite`` deletes the whole previous evaluation. A folder made before manifests (it
 holds ``table.md``, ``verdict.md``, ``results.json`` or an ``agents.evaluate`` ``command.txt``) is adopted.
 ``--baseline`` (and ``--validation-baseline``) must be an ``agents.open_loop`` folder (by its manifest, or
@@ -520,6 +522,23 @@ def check_play_env(play_env: str, play_kwargs: dict[str, Any], trained: dict[Pat
             )
 
 
+LOCATION_KEYS = ("run", "model")
+"""Keys of a played run's identity that say where its files lie, not what they hold (the model's and the
+statistics' SHA-256 say that): left out when stored episodes are matched, so that an evaluation committed
+in one checkout resumes in another, or after its run folder was moved."""
+
+
+def same_play(stored: Any, wanted: dict[str, Any]) -> bool:
+    """Whether a stored per-run ``identity`` is that of ``wanted`` up to :data:`LOCATION_KEYS`."""
+    if not isinstance(stored, dict):
+        return False
+
+    def content(identity: dict[str, Any]) -> dict[str, Any]:
+        return {k: v for k, v in identity.items() if k not in LOCATION_KEYS}
+
+    return content(stored) == content(wanted)
+
+
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
@@ -529,7 +548,7 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     path = Path(payload["path"])
     if path.exists():
         old = read_json(path)
-        if old.get("identity") == payload["identity"]:
+        if same_play(old.get("identity"), payload["identity"]):
             return dict(old)
     run = Path(payload["run"])
     config = yaml.safe_load((run / "config.yml").read_text())
@@ -558,7 +577,7 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     done: dict[tuple[int, int], dict[str, Any]] = {}
     if partial.exists():
         old = read_json(partial)
-        if old.get("identity") == payload["identity"]:
+        if same_play(old.get("identity"), payload["identity"]):
             done = {(int(e["index"]), int(e["realisation"])): e for e in old["episodes"]}
     episodes = []
     scheduled = payload.get("schedules")  # a schedules file's episodes (agents.schedules), or None
