@@ -99,7 +99,14 @@ _TRAINING_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "eval_freq", "
 
 
 _CONSTRUCTOR_SET = (
-    "self", "policy", "env", "seed", "device", "tensorboard_log", "verbose", "_init_setup_model"
+    "self",
+    "policy",
+    "env",
+    "seed",
+    "device",
+    "tensorboard_log",
+    "verbose",
+    "_init_setup_model",
 )
 """Arguments of the algorithm's constructor that ``train_run`` sets itself (not hyperparameters)."""
 
