@@ -11,15 +11,32 @@ from typing import TextIO
 
 from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
 
+from agents.folders import save_atomic
+
 
 class NewestBufferCheckpointCallback(CheckpointCallback):
-    """SB3's ``CheckpointCallback`` that deletes the older replay buffers once a new one is saved.
+    """SB3's ``CheckpointCallback`` that writes each checkpoint atomically as a set, and deletes the older
+    replay buffers once a new one is saved.
 
     A run resumes from its newest checkpoint only, and a replay buffer is the largest file of a run (its
     arrays are allocated for ``buffer_size`` transitions and pickled whole: about 1.2 MB per 10^4
     transitions of a 15-number observation), so ten of them per seed would make a committed SAC study
     ~10x larger than it needs to be. Models and normalisation statistics are kept at every checkpoint
-    (for ``agents.evaluate --model best`` and learning curves)."""
+    (for ``agents.evaluate --model best`` and learning curves).
+
+    A set (``ckpt_vecnormalize_<N>_steps.pkl``, ``ckpt_replay_buffer_<N>_steps.pkl``, ``ckpt_<N>_steps.zip``)
+    is written file by file to hidden temporary names beside them, each renamed into place once whole
+    (:func:`agents.folders.save_atomic`), the model last: a model file means that the rest of its set is in
+    place, so that a process killed while writing a checkpoint (SIGKILL, a node lost) leaves the previous
+    checkpoint the newest whole one (``agents.train._latest_checkpoint``), not a truncated file, nor a
+    model without its statistics. The older replay buffers go only once the new model is in place. The
+    temporaries such a process leaves (``.ckpt_*.tmp.*``) are removed when training starts here again."""
+
+    def _init_callback(self) -> None:
+        super()._init_callback()
+        if self.save_path is not None:  # leftovers of a process killed while writing a checkpoint
+            for leftover in Path(self.save_path).glob(f".{self.name_prefix}_*.tmp.*"):
+                leftover.unlink(missing_ok=True)
 
     def _on_step(self) -> bool:
         if self.n_calls % self.save_freq == 0:
@@ -27,18 +44,20 @@ class NewestBufferCheckpointCallback(CheckpointCallback):
         return True
 
     def save_now(self) -> None:
-        """Save the model, the normalisation statistics and (SAC) the replay buffer at the current step,
-        then delete the older replay buffers."""
-        self.model.save(self._checkpoint_path(extension="zip"))
-        if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
-            newest = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
-            self.model.save_replay_buffer(str(newest))  # type: ignore[attr-defined]
-            for old in newest.parent.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
-                if old != newest:  # the new one is written: the old ones can go
-                    old.unlink()
+        """Save the normalisation statistics, (SAC) the replay buffer and then the model at the current
+        step, each atomically, then delete the older replay buffers."""
         normaliser = self.model.get_vec_normalize_env()
         if self.save_vecnormalize and normaliser is not None:
-            normaliser.save(self._checkpoint_path("vecnormalize_", extension="pkl"))
+            save_atomic(normaliser.save, Path(self._checkpoint_path("vecnormalize_", extension="pkl")))
+        newest = None
+        if self.save_replay_buffer and getattr(self.model, "replay_buffer", None) is not None:
+            newest = Path(self._checkpoint_path("replay_buffer_", extension="pkl"))
+            save_atomic(self.model.save_replay_buffer, newest)  # type: ignore[attr-defined]
+        save_atomic(self.model.save, Path(self._checkpoint_path(extension="zip")))
+        if newest is not None:  # the new set is whole: the old buffers can go
+            for old in newest.parent.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
+                if old != newest:
+                    old.unlink()
 
 
 class StopOnSignalCallback(BaseCallback):

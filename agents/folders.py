@@ -245,6 +245,28 @@ def write_text_atomic(path: Path, text: str) -> None:
         raise
 
 
+def save_atomic(save: Callable[[str], Any], path: Path) -> None:
+    """``save(file)`` (SB3's ``model.save``, ``save_replay_buffer``, ``VecNormalize.save``) into a temporary
+    file beside ``path``, :func:`temporary_name`, then renamed over ``path`` (``os.replace``): ``path`` is
+    either absent, its previous content, or whole, never a truncated file of a process killed while
+    writing. The temporary file is removed on an exception; one left by a killed process is hidden
+    (``.`` first) and overwritten by the next save of ``path``."""
+    path = Path(path)
+    tmp = temporary_name(path)
+    try:
+        save(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def temporary_name(path: Path) -> Path:
+    """The temporary file :func:`save_atomic` writes ``path`` to: ``.<stem>.tmp<suffix>`` beside it (the
+    same suffix: SB3 appends ``.zip`` or ``.pkl`` to a name without it)."""
+    path = Path(path)
+    return path.with_name(f".{path.stem}.tmp{path.suffix}")
+
+
 def write_command(folder: Path, module: str, argv: Sequence[str] | None) -> None:
     """``folder/command.txt``: the command line, atomically."""
     write_text_atomic(Path(folder) / "command.txt", " ".join(command_line(module, argv)) + "\n")

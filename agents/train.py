@@ -10,7 +10,9 @@ overridden by ``--hyperparams``. Training runs ``n_envs`` environments in a ``Su
 ``DummyVecEnv`` for one, or inside a daemonic worker) under ``VecNormalize``; an ``EvalCallback``
 evaluates the deterministic policy on every validation start state (``start_state="cycle"``) every
 ``eval_freq`` steps and keeps the best model; checkpoints (model, normalisation statistics and, for SAC,
-the replay buffer) every ``checkpoint_freq`` steps; TensorBoard logs; a progress bar.
+the replay buffer) every ``checkpoint_freq`` steps, each written atomically as a set (every file renamed
+into place once whole, the model last), so that a process killed while writing one (SIGKILL, a lost node)
+resumes from the one before; TensorBoard logs; a progress bar.
 
 A run folder holds ``manifest.json`` (written first: the command and the run's identity, see below),
 ``config.yml`` (env id and arguments, algorithm, seed, resolved hyperparameters, versions),
@@ -50,11 +52,13 @@ import json
 import math
 import multiprocessing as mp
 import os
+import pickle
 import re
 import signal
 import sys
 import threading
 import time
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -69,6 +73,7 @@ from agents.folders import (
     legacy_markers,
     normalise,
     read_evaluation_log,
+    save_atomic,
     write_text_atomic,
 )
 from agents.init_from import (
@@ -99,7 +104,14 @@ _TRAINING_KEYS = ("n_timesteps", "n_envs", "policy", "normalize", "eval_freq", "
 
 
 _CONSTRUCTOR_SET = (
-    "self", "policy", "env", "seed", "device", "tensorboard_log", "verbose", "_init_setup_model"
+    "self",
+    "policy",
+    "env",
+    "seed",
+    "device",
+    "tensorboard_log",
+    "verbose",
+    "_init_setup_model",
 )
 """Arguments of the algorithm's constructor that ``train_run`` sets itself (not hyperparameters)."""
 
@@ -293,12 +305,61 @@ def versions() -> dict[str, str]:
 
 
 def _latest_checkpoint(folder: Path) -> tuple[int, Path] | None:
+    """The newest whole checkpoint in ``folder``, ``(steps, folder / "ckpt_<steps>_steps.zip")``, or None.
+
+    A checkpoint is a set written model last, each file renamed into place once whole
+    (:class:`agents.callbacks.NewestBufferCheckpointCallback`), so a model file marks a whole set. A step
+    counts when its model is a whole SB3 archive (:func:`_whole_zip`), its replay buffer (where there is
+    one: only the newest is kept) a whole pickle and, in a folder that holds normalisation statistics, its
+    statistics a whole pickle too: what a process killed mid-checkpoint left before checkpoints were
+    atomic (a truncated file, a model without its statistics) is passed over for the checkpoint before
+    it. Temporary files (``.ckpt_*.tmp.*``) never count. A folder without any statistics yields its newest
+    model, and :func:`missing_normalisation` refuses to resume a normalised run from it."""
     found = []
     for path in folder.glob("ckpt_*_steps.zip"):
         match = re.fullmatch(r"ckpt_(\d+)_steps\.zip", path.name)
         if match:
             found.append((int(match.group(1)), path))
-    return max(found) if found else None
+    normalised = any(folder.glob("ckpt_vecnormalize_*_steps.pkl"))
+    for steps, path in sorted(found, reverse=True):
+        stats = folder / f"ckpt_vecnormalize_{steps}_steps.pkl"
+        buffer = folder / f"ckpt_replay_buffer_{steps}_steps.pkl"
+        if (
+            _whole_zip(path)
+            and (not normalised or _whole_pickle(stats))
+            and (not buffer.exists() or _whole_pickle(buffer))
+        ):
+            return steps, path
+    return None
+
+
+def _whole_zip(path: Path) -> bool:
+    """True when ``path`` is a whole SB3 model archive: it ends with a zip's end-of-central-directory record
+    (SB3 writes no comment) and its directory lists SB3's ``data``. Opening is not enough: SB3 stores its
+    ``.pth`` files uncompressed and they are zip archives themselves, so a model cut short where one of them
+    ends, or after it, opens as that inner archive (``zipfile`` looks back for the last such record)."""
+    try:
+        with path.open("rb") as stream:
+            stream.seek(-22, os.SEEK_END)
+            end = stream.read(22)
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+    except (OSError, zipfile.BadZipFile):  # missing, shorter than the record, or no archive
+        return False
+    return end[:4] == b"PK\x05\x06" and end[20:] == b"\x00\x00" and "data" in names
+
+
+def _whole_pickle(path: Path) -> bool:
+    """True when ``path`` starts like a pickle of protocol 2 or later (SB3 and ``VecNormalize`` write those)
+    and ends with its STOP opcode: a cheap check, without unpickling a replay buffer of megabytes, that
+    passes over an empty or truncated file."""
+    try:
+        with path.open("rb") as stream:
+            head = stream.read(2)
+            stream.seek(-1, os.SEEK_END)
+            return head[:1] == pickle.PROTO and head[1:] >= b"\x02" and stream.read(1) == pickle.STOP
+    except OSError:  # missing, or shorter than the seek
+        return False
 
 
 def missing_normalisation(out: Path, hyperparams: dict[str, Any]) -> str | None:
@@ -654,9 +715,9 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
         )
         raise SystemExit(128 + signal.SIGTERM)
     wall = time.perf_counter() - tic
-    _save_atomic(model.save, out / "model.zip")
-    if normalize:
-        _save_atomic(env.save, out / "vecnormalize.pkl")
+    if normalize:  # the statistics first: a model.zip beside a missing vecnormalize.pkl is never seen
+        save_atomic(env.save, out / "vecnormalize.pkl")
+    save_atomic(model.save, out / "model.zip")
     eval_cb = callbacks.callbacks[1]
     result = {
         "env_id": env_id,
@@ -676,17 +737,6 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     eval_env.close()
     write_text_atomic(out / "result.json", json.dumps(result, indent=1, allow_nan=False))
     return result
-
-
-def _save_atomic(save: Any, path: Path) -> None:
-    """``save(file)`` (SB3's ``model.save``, ``VecNormalize.save``) into a temporary file beside ``path``
-    (same suffix: SB3 adds ``.zip`` to a name without it), then renamed over ``path``."""
-    tmp = path.with_name(f".{path.stem}.tmp{path.suffix}")
-    try:
-        save(str(tmp))
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
 
 
 def _restore_eval_history(callback: Any, log: Path, steps_done: int) -> None:

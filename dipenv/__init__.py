@@ -18,7 +18,9 @@ imports it too):
 * ``dipenv/ViscosityTracking-v0``: field strength and direction so that eta_r follows a target schedule
   (9-25) while the shear rate follows its own (the box of ``ThickeningControl-v2``);
   ``dipenv/ViscosityTrackingStressOnly-v0`` without the rate (and with Sigma_xy for eta_r);
-  ``dipenv/ViscosityTrackingTiny-v0`` in the tiny box, for tests (issue 44).
+  ``dipenv/ViscosityTrackingTiny-v0`` in the tiny box, for tests (issue 44). The tiny ids' arguments
+  (:data:`TINY_KWARGS`, :data:`THICKENING_TINY_KWARGS`, :data:`TRACKING_TINY_KWARGS`) live in
+  :mod:`dipenv.envs.tiny`.
 
 See :class:`dipenv.envs.field_control.FieldMagnitudeEnv`,
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` and
@@ -33,9 +35,9 @@ from gymnasium.envs.registration import register, registry
 
 from dipenv.envs.field_control import FieldMagnitudeEnv, FieldVectorEnv
 from dipenv.envs.thickening_control import ThickeningControlEnv, ThickeningControlStressOnlyEnv
+from dipenv.envs.tiny import THICKENING_TINY_KWARGS, TINY_KWARGS, TRACKING_TINY_KWARGS
 from dipenv.envs.viscosity_tracking import (
     TRACKING_KWARGS,
-    TRACKING_TINY_KWARGS,
     ViscosityTrackingEnv,
     ViscosityTrackingStressOnlyEnv,
 )
@@ -57,30 +59,6 @@ __all__ = [
     "ViscosityTrackingEnv",
     "ViscosityTrackingStressOnlyEnv",
 ]
-
-TINY_KWARGS: dict[str, Any] = {
-    "n_particles": 32,
-    "volume_fraction": 0.45,
-    "near_field_cutoff": 3.0,
-    "control_interval": 0.02,
-    "episode_steps": 10,
-    "mason_min": 0.1,
-    "preshear_strain": 1.0,
-    "split_sizes": {"train": 4, "validation": 2, "test": 2},
-    "target_viscosity": 7.0,
-}
-"""Arguments of the tiny variants: the smallest box the exact near field allows at phi = 0.45 with a
-3 a cut-off, short intervals and episodes, a narrower Mn range (Mn = 0.05 costs 4x the steps of 0.2)."""
-
-THICKENING_TINY_KWARGS: dict[str, Any] = {
-    **{k: v for k, v in TINY_KWARGS.items() if k != "target_viscosity"},
-    "eta_cap": 7.0,
-    "hold_range": (0.04, 0.08),
-    "ramp_range": (0.02, 0.05),
-    "max_piece": 0.01,
-}
-"""The tiny thickening-control variant: the tiny box and intervals, with holds and ramps scaled to its
-0.2-time episodes."""
 
 V1_KWARGS: dict[str, Any] = {"n_particles": 300}
 """What the ``-v1`` ids change against ``-v0``: the box. N = 300 (L = 14.1 a at phi = 0.45) is the smallest

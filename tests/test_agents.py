@@ -561,6 +561,197 @@ def test_sigterm_stops_training_with_a_checkpoint_and_the_rerun_resumes_there(
     assert (run / "checkpoints" / "ckpt_64_steps.zip").exists()
 
 
+def _inner_archive(steps: int) -> bytes:
+    """A zip archive as SB3 stores one (uncompressed) inside a model: ``torch.save``'s ``.pth`` format."""
+    import io
+    import zipfile
+
+    stream = io.BytesIO()
+    with zipfile.ZipFile(stream, "w") as archive:
+        archive.writestr("policy/data.pkl", bytes(range(256)) * (steps // 256))
+    return stream.getvalue()
+
+
+def _checkpoint_set(folder: Path, steps: int) -> None:
+    """A whole checkpoint set at ``steps``: the model a zip archive laid out as SB3's (``data``, then a stored
+    ``.pth`` that is a zip archive itself, then more entries), the statistics and the replay buffer pickles
+    of the protocols SB3 writes (``VecNormalize.save``: 4; ``save_to_pkl``: the highest)."""
+    import pickle
+    import zipfile
+
+    folder.mkdir(parents=True, exist_ok=True)
+    with zipfile.ZipFile(folder / f"ckpt_{steps}_steps.zip", "w") as archive:
+        archive.writestr("data", json.dumps({"steps": steps}) * 100)
+        archive.writestr("policy.pth", _inner_archive(steps))
+        archive.writestr("system_info.txt", "- OS: test\n" * 20)
+    (folder / f"ckpt_vecnormalize_{steps}_steps.pkl").write_bytes(pickle.dumps({"steps": steps}, protocol=4))
+    buffer = pickle.dumps(np.arange(steps, dtype=float), protocol=pickle.HIGHEST_PROTOCOL)
+    (folder / f"ckpt_replay_buffer_{steps}_steps.pkl").write_bytes(buffer)
+
+
+def _truncate(path: Path) -> None:
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def _cut_after_inner_archive(folder: Path) -> None:
+    """The model at step 1024 cut where the archive stored inside it ends: ``zipfile`` opens it as that
+    archive."""
+    model = folder / "ckpt_1024_steps.zip"
+    raw, inner = model.read_bytes(), _inner_archive(1024)
+    model.write_bytes(raw[: raw.index(inner) + len(inner)])
+
+
+_DAMAGE = {
+    "model missing": lambda folder: (folder / "ckpt_1024_steps.zip").unlink(),
+    "truncated model": lambda folder: _truncate(folder / "ckpt_1024_steps.zip"),
+    "model cut after an inner archive": _cut_after_inner_archive,
+    "empty model": lambda folder: (folder / "ckpt_1024_steps.zip").write_bytes(b""),
+    "model without statistics": lambda folder: (folder / "ckpt_vecnormalize_1024_steps.pkl").unlink(),
+    "truncated statistics": lambda folder: _truncate(folder / "ckpt_vecnormalize_1024_steps.pkl"),
+    "truncated replay buffer": lambda folder: _truncate(folder / "ckpt_replay_buffer_1024_steps.pkl"),
+}
+
+
+@pytest.mark.parametrize("damage", _DAMAGE)
+def test_resume_passes_over_an_incomplete_checkpoint_set(tmp_path: Path, damage: str) -> None:
+    """Was: a run resumed from its newest ``ckpt_<N>_steps.zip`` whatever the state of its set, so a process
+    killed while writing a checkpoint left a truncated model, statistics or replay buffer (the rerun failed
+    loading it) or a model without its statistics (the rerun was refused), though the checkpoint before
+    it was whole. Now the newest whole set is resumed from; temporary files (here whole ones of a later
+    step) never count."""
+    run = tmp_path / "run"
+    folder = run / "checkpoints"
+    _checkpoint_set(folder, 512)
+    _checkpoint_set(folder, 1024)
+    hyperparams = {"normalize": True, "n_timesteps": 4096}
+    assert train._latest_checkpoint(folder) == (1024, folder / "ckpt_1024_steps.zip")  # whole: the newest
+    _DAMAGE[damage](folder)
+    shutil.copy(folder / "ckpt_512_steps.zip", folder / ".ckpt_2048_steps.tmp.zip")
+    shutil.copy(folder / "ckpt_vecnormalize_512_steps.pkl", folder / ".ckpt_vecnormalize_2048_steps.tmp.pkl")
+    assert train._latest_checkpoint(folder) == (512, folder / "ckpt_512_steps.zip")
+    assert train.missing_normalisation(run, hyperparams) is None and train.has_progress(run)
+    # nothing whole: no checkpoint to resume from
+    for path in folder.glob("ckpt_*_steps.zip"):
+        _truncate(path)
+    assert train._latest_checkpoint(folder) is None
+
+
+@pytest.mark.parametrize("failing", [1, 2, 3], ids=["statistics", "replay buffer", "model"])
+def test_checkpoints_are_written_as_a_set_model_last(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, failing: int
+) -> None:
+    """Was: the checkpoint callback wrote the model in place first, then the replay buffer and the
+    statistics, so a process killed in between left a truncated file, or a model without its statistics,
+    under the names a rerun resumes from. Now each file of a set is written to a temporary name and
+    renamed into place (``os.replace``), statistics and replay buffer first, the model last: a failure at
+    any rename leaves no model at the new step, the previous set whole (its replay buffer kept) and no
+    temporary file; the temporaries a killed process left are removed when training starts again."""
+    import torch
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from agents.callbacks import NewestBufferCheckpointCallback
+
+    torch.set_num_threads(1)
+    folder = tmp_path / "checkpoints"
+    env = VecNormalize(make_vec_env(lambda: make_env(ENV, {"progress": False}), n_envs=1, seed=0))
+    model = SAC("MlpPolicy", env, buffer_size=64, policy_kwargs={"net_arch": [8]}, device="cpu", seed=0)
+
+    def checkpointer() -> NewestBufferCheckpointCallback:
+        callback = NewestBufferCheckpointCallback(
+            1, str(folder), name_prefix="ckpt", save_vecnormalize=True, save_replay_buffer=True
+        )
+        callback.init_callback(model)
+        return callback
+
+    callback = checkpointer()
+    callback.num_timesteps = 512
+    callback.save_now()
+    first = sorted(p.name for p in folder.iterdir())
+    assert first == [
+        "ckpt_512_steps.zip",
+        "ckpt_replay_buffer_512_steps.pkl",
+        "ckpt_vecnormalize_512_steps.pkl",
+    ]
+
+    replace, calls = os.replace, []
+
+    def failing_replace(source: Any, target: Any) -> None:
+        calls.append(Path(target).name)
+        if len(calls) == failing:
+            raise OSError(f"no space left writing {target}")
+        replace(source, target)
+
+    monkeypatch.setattr(os, "replace", failing_replace)
+    callback.num_timesteps = 1024
+    with pytest.raises(OSError, match="no space left"):
+        callback.save_now()
+    monkeypatch.undo()
+    order = ["ckpt_vecnormalize_1024_steps.pkl", "ckpt_replay_buffer_1024_steps.pkl", "ckpt_1024_steps.zip"]
+    assert calls == order[:failing]
+    assert sorted(p.name for p in folder.iterdir()) == sorted([*first, *order[: failing - 1]])
+    assert train._latest_checkpoint(folder) == (512, folder / "ckpt_512_steps.zip")
+
+    # a killed process leaves its temporaries: ignored by resume, removed when training starts again
+    for name in order:
+        (folder / f".{Path(name).stem}.tmp{Path(name).suffix}").write_bytes(b"partial")
+    assert train._latest_checkpoint(folder) == (512, folder / "ckpt_512_steps.zip")
+    callback = checkpointer()
+    assert not list(folder.glob(".*"))
+    callback.num_timesteps = 1024
+    callback.save_now()
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        ["ckpt_512_steps.zip", "ckpt_vecnormalize_512_steps.pkl", *order]
+    )
+    assert train._latest_checkpoint(folder) == (1024, folder / "ckpt_1024_steps.zip")
+    loaded = SAC.load(
+        str(folder / "ckpt_1024_steps.zip"),
+        env=VecNormalize.load(str(folder / "ckpt_vecnormalize_1024_steps.pkl"), env.venv),
+        device="cpu",
+    )
+    loaded.load_replay_buffer(str(folder / "ckpt_replay_buffer_1024_steps.pkl"))
+
+
+def _killed_before_the_model(checkpoints: Path) -> None:
+    """Step 64 as a process killed while writing its model leaves it: statistics in place, the model a
+    partial temporary file."""
+    model = checkpoints / "ckpt_64_steps.zip"
+    (checkpoints / ".ckpt_64_steps.tmp.zip").write_bytes(model.read_bytes()[:1000])
+    model.unlink()
+
+
+@pytest.mark.parametrize(
+    "kill",
+    [
+        _killed_before_the_model,
+        lambda checkpoints: _truncate(checkpoints / "ckpt_64_steps.zip"),
+    ],
+    ids=["killed before the model's rename", "model truncated in place"],
+)
+def test_a_rerun_resumes_from_the_last_whole_checkpoint(tmp_path: Path, kill: Any) -> None:
+    """End to end: a run killed while writing its step-64 checkpoint (before its model was renamed into
+    place; or, as the old in-place writes left it, with its model truncated) resumes from step 32 and
+    rewrites step 64 whole; the temporaries left are removed. Was: the truncated model was resumed from
+    and failed to load (the half of an SB3 model opens as the ``.pth`` archive stored in it: "No data found
+    in the saved file")."""
+    run = tmp_path / "ppo"
+    argv = ["--env", ENV, "--timesteps", "64", "--n-envs", "1", "--no-progress", "--algo", "ppo"]
+    argv += ["--seed", "0", "--out", str(run), "--hyperparams", *SHORT]
+    train.main(argv)
+    for name in ("result.json", "model.zip", "vecnormalize.pkl"):
+        (run / name).unlink()  # killed before the end
+    checkpoints = run / "checkpoints"
+    kill(checkpoints)
+    (checkpoints / ".ckpt_vecnormalize_96_steps.tmp.pkl").write_bytes(b"partial")
+    assert train._latest_checkpoint(checkpoints) == (32, checkpoints / "ckpt_32_steps.zip")
+    result = train.main(argv)[0]
+    assert result["resumed_from"] == 32 and result["timesteps"] >= 64
+    assert train._latest_checkpoint(checkpoints) == (64, checkpoints / "ckpt_64_steps.zip")
+    assert not list(checkpoints.glob(".*")) and not list(run.glob(".*.tmp.*"))
+    assert (run / "model.zip").exists() and (run / "vecnormalize.pkl").exists()
+
+
 def test_validation_baseline_lines_are_its_no_field_and_best_constant_returns(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

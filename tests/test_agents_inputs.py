@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import ast
 import json
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -203,7 +204,8 @@ def test_a_bad_evaluation_log_is_named(tmp_path: Path) -> None:
     run = tmp_path / "run"
     log = _evaluation_log(run / "eval" / "evaluations.npz")
     (run / "checkpoints").mkdir()
-    (run / "checkpoints" / "ckpt_64_steps.zip").write_bytes(b"")
+    with zipfile.ZipFile(run / "checkpoints" / "ckpt_64_steps.zip", "w") as model:  # a whole SB3 archive
+        model.writestr("data", "{}")
     assert train.evaluation_log_problem(run) is None
     log.write_bytes(log.read_bytes()[:50])
     problem = train.evaluation_log_problem(run)

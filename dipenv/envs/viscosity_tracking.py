@@ -402,22 +402,3 @@ TRACKING_KWARGS: dict[str, Any] = {"n_particles": 300, "mason_min": 0.1}
 """The ``-v0`` tracking ids' box and field range: those of ``ThickeningControl-v2`` (N = 300, the box-size
 study's smallest box that matches N = 500, docs/environments.md#box-size; ``Mn_ref`` >= 0.1), so they share
 its start-state library. The energy weight is the class default (:data:`TRACKING_ENERGY_WEIGHT`)."""
-
-TRACKING_TINY_KWARGS: dict[str, Any] = {
-    "n_particles": 32,
-    "volume_fraction": 0.45,
-    "near_field_cutoff": 3.0,
-    "control_interval": 0.02,
-    "episode_steps": 10,
-    "mason_min": 0.1,
-    "preshear_strain": 1.0,
-    "split_sizes": {"train": 4, "validation": 2, "test": 2},
-    "hold_range": (0.04, 0.08),
-    "ramp_range": (0.02, 0.05),
-    "max_piece": 0.01,
-    "target_hold_range": (0.04, 0.08),
-    "target_ramp_range": (0.02, 0.05),
-    "target_preview": 0.04,
-}
-"""The tiny tracking id: the box, intervals and rate schedules of ``ThickeningControlTiny-v0`` (so it shares
-that id's start states), with the target's holds, ramps and preview scaled to its 0.2-time episodes."""
