@@ -20,7 +20,10 @@ imports it too):
   ``dipenv/ViscosityTrackingStressOnly-v0`` without the rate (and with Sigma_xy for eta_r);
   ``dipenv/ViscosityTrackingTiny-v0`` in the tiny box, for tests (issue 44). The tiny ids' arguments
   (:data:`TINY_KWARGS`, :data:`THICKENING_TINY_KWARGS`, :data:`TRACKING_TINY_KWARGS`) live in
-  :mod:`dipenv.envs.tiny`.
+  :mod:`dipenv.envs.tiny`;
+* ``dipenv/ThickeningControlSurrogate-v0`` (and its stress-only id) and
+  ``dipenv/ViscosityTrackingSurrogate-v0``: the same tasks over a fitted model instead of the simulator
+  (docs/surrogate.md; :data:`SURROGATE_IDS`, :data:`TRACKING_SURROGATE_IDS`).
 
 See :class:`dipenv.envs.field_control.FieldMagnitudeEnv`,
 :class:`dipenv.envs.thickening_control.ThickeningControlEnv` and
@@ -144,3 +147,18 @@ for _env_id, _cls in zip(
 ):
     if _env_id not in registry:
         register(id=_env_id, entry_point=f"dipenv.surrogate.env:{_cls}", kwargs=dict(THICKENING_V2_KWARGS))
+
+TRACKING_SURROGATE_IDS = ("dipenv/ViscosityTrackingSurrogate-v0",)
+"""The surrogate of ``ViscosityTracking-v0`` (issue 44): its spaces, schedules, targets and reward over a
+fitted direction-aware model of the simulator's tracking trajectories
+(docs/surrogate.md#the-tracking-surrogate). No model is shipped yet: ``gym.make`` needs ``model=PATH``.
+Neither in :data:`ENV_IDS` nor in :data:`SURROGATE_IDS` (which the agents' commands accept), until a
+model is shipped."""
+
+for _env_id in TRACKING_SURROGATE_IDS:
+    if _env_id not in registry:
+        register(
+            id=_env_id,
+            entry_point="dipenv.surrogate.tracking_env:ViscosityTrackingSurrogateEnv",
+            kwargs=dict(TRACKING_KWARGS),
+        )

@@ -1,4 +1,4 @@
-"""Fit the thickening-control surrogate (issue 43) on simulator episodes, compare the routes, keep the best.
+"""Fit a surrogate (issues 43, 44) on simulator episodes, compare the routes, keep the best.
 
     python scripts/fit_surrogate.py DATA_DIR --out FILE.npz [--seeds 0-49] [--routes lambda,ensemble]
         [--cross-validate] [--keep auto] [--seed 0] [--holdout-mod 5] [--samples 32] [--members 5]
@@ -22,6 +22,14 @@ Routes (``docs/surrogate.md``; inference in :mod:`dipenv.surrogate.models`):
   thread) on the Gaussian negative log-likelihood of the change of the frame's dynamic part, each on a
   bootstrap of the fitting intervals (PETS), with soft-bounded log-variances; early stopping on a tenth
   of the fitting episodes (by seed).
+
+**Tracking data** (a data folder of ``dipenv/ViscosityTracking*``, whose episodes hold each interval's field
+direction): the ensemble is fitted with the direction block of :mod:`dipenv.surrogate.features` (the
+traceless ``e e^T - I/3`` of this and the previous interval's direction, 10 more inputs; the model's
+metadata say ``direction_inputs: true``), and the returns below are the tracking reward's,
+``-(|eta_r - target| + w_E / Mn_ref)`` with each interval's recorded target. The lambda model knows fields
+along ``y`` only and is refused there; ``--routes`` defaults to ``ensemble``. A folder that mixes episodes
+with and without directions is refused.
 
 Both are scored on the held-out episodes: one-step error of the interval ``eta_r`` (the model's mean
 given the observed frame before it; persistence as a reference), open-loop rollouts (``--samples`` per
@@ -59,7 +67,7 @@ import sim  # noqa: E402
 from dipenv.surrogate.data import Episode, data_settings, load_episodes  # noqa: E402
 from dipenv.surrogate.features import (  # noqa: E402
     N_DYNAMIC,
-    N_MLP_INPUTS,
+    Y_AXIS,
     inverse_signed_log,
     mlp_inputs,
 )
@@ -89,14 +97,27 @@ def split_episodes(episodes: list[Episode], mod: int) -> tuple[list[Episode], li
     return fit, held
 
 
+def has_directions(episodes: list[Episode]) -> bool:
+    """Whether the episodes hold their fields' directions (tracking data); ``ValueError`` for a mixture."""
+    held = {e.direction is not None for e in episodes}
+    if len(held) > 1:
+        raise ValueError("some episodes hold their fields' directions and some do not: one task per folder")
+    return held == {True}
+
+
 def stacked(episodes: list[Episode]) -> dict[str, Any]:
-    return {
+    out = {
         "dynamic": np.stack([e.dynamic for e in episodes]),
         "masons": np.stack([e.mason for e in episodes]),
         "tables": [e.table for e in episodes],
         "eta": np.stack([e.eta_r for e in episodes]),
         "energy": np.stack([e.field_energy for e in episodes]),
     }
+    if has_directions(episodes):
+        out["directions"] = np.stack([np.asarray(e.direction) for e in episodes])
+    if all(e.target_eta_r is not None for e in episodes):
+        out["targets"] = np.stack([np.asarray(e.target_eta_r) for e in episodes])
+    return out
 
 
 def common_arrays(episodes: list[Episode], fit: list[Episode]) -> dict[str, np.ndarray]:
@@ -218,20 +239,39 @@ def fit_lambda(fit: list[Episode], seed: int, starts: int) -> tuple[dict[str, np
 
 
 # -- ensemble route ---------------------------------------------------------------------------------------
-def transitions(episodes: list[Episode]) -> tuple[np.ndarray, np.ndarray]:
-    """(inputs (n, I), targets (n, 12)): every interval's inputs and the change of the dynamic part."""
+def transitions(episodes: list[Episode], direction: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """(inputs (n, I), targets (n, 12)): every interval's inputs and the change of the dynamic part; with
+    ``direction``, the inputs carry the direction block of this and the previous interval (the first
+    interval's previous direction is ``y``, where the envs' reset puts the field)."""
     xs, ys = [], []
     for e in episodes:
         previous = np.concatenate([[np.inf], e.mason[:-1]])
         t = e.table
-        xs.append(mlp_inputs(e.dynamic[:-1], previous, e.mason, t.rate_start, t.rate_mean, t.rate_end))
+        if direction:
+            if e.direction is None:
+                raise ValueError(f"episode {e.seed} holds no field directions")
+            now = np.asarray(e.direction, dtype=np.float64)
+            before = np.concatenate([np.array([Y_AXIS]), now[:-1]])
+            x = mlp_inputs(
+                e.dynamic[:-1], previous, e.mason, t.rate_start, t.rate_mean, t.rate_end, before, now, True
+            )
+        else:
+            x = mlp_inputs(e.dynamic[:-1], previous, e.mason, t.rate_start, t.rate_mean, t.rate_end)
+        xs.append(x)
         ys.append(e.dynamic[1:] - e.dynamic[:-1])
     return np.concatenate(xs), np.concatenate(ys)
 
 
 def fit_ensemble(
-    fit: list[Episode], seed: int, members: int, hidden: int, max_epochs: int, patience: int
+    fit: list[Episode],
+    seed: int,
+    members: int,
+    hidden: int,
+    max_epochs: int,
+    patience: int,
+    direction: bool = False,
 ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Train the ensemble (module docstring); ``direction``: with the direction block in its inputs."""
     import torch
 
     torch.set_num_threads(1)
@@ -241,8 +281,8 @@ def fit_ensemble(
     val_seeds = set(rng.choice(seeds, size=max(1, len(seeds) // 10), replace=False).tolist())
     train_eps = [e for e in fit if e.seed not in val_seeds]
     val_eps = [e for e in fit if e.seed in val_seeds]
-    x_tr, y_tr = transitions(train_eps)
-    x_va, y_va = transitions(val_eps)
+    x_tr, y_tr = transitions(train_eps, direction)
+    x_va, y_va = transitions(val_eps, direction)
     x_mean, x_std = x_tr.mean(axis=0), x_tr.std(axis=0) + 1e-6
     y_mean, y_std = y_tr.mean(axis=0), y_tr.std(axis=0) + 1e-9
 
@@ -255,7 +295,7 @@ def fit_ensemble(
     xt, yt = scaled(x_tr, y_tr)
     xv, yv = scaled(x_va, y_va)
     n, d = len(xt), N_DYNAMIC
-    sizes = [(N_MLP_INPUTS, hidden), (hidden, hidden), (hidden, 2 * d)]
+    sizes = [(x_tr.shape[1], hidden), (hidden, hidden), (hidden, 2 * d)]
     weights = []
     for fan_in, fan_out in sizes:
         w = torch.empty(members, fan_in, fan_out)
@@ -324,6 +364,8 @@ def fit_ensemble(
         "train_intervals": n,
         "validation_episodes": sorted(int(s) for s in val_seeds),
     }
+    if direction:
+        info["direction_inputs"] = True
     return arrays, info
 
 
@@ -333,22 +375,43 @@ def returns(eta: np.ndarray, energy: np.ndarray, cap: float, weight: float) -> n
     return -(np.maximum(0.0, eta - cap) + weight * energy).sum(axis=-1)
 
 
+def tracking_returns(eta: np.ndarray, energy: np.ndarray, target: np.ndarray, weight: float) -> np.ndarray:
+    """Episode returns of the tracking reward ``-(|eta_r - target| + w_E energy)`` (last axis: intervals;
+    ``target``: each interval's mean target, as the env charged it)."""
+    return -(np.abs(eta - target) + weight * energy).sum(axis=-1)
+
+
 def predict(
     model: SurrogateModel, held: list[Episode], settings: dict[str, Any], samples: int, seed: int
 ) -> dict[str, Any]:
     """Per-episode predictions on ``held`` (one-step, ``samples`` open-loop rollouts, returns)."""
     data = stacked(held)
     dynamic, masons, tables, eta = data["dynamic"], data["masons"], data["tables"], data["eta"]
-    cap, weight = settings["eta_cap"], settings["energy_weight"]
+    weight = settings["energy_weight"]
     rng = np.random.default_rng(seed)
-    roll = inverse_signed_log(model.rollout(dynamic[:, 0], masons, tables, rng, samples)[..., 0])  # (E,S,T)
+    if "directions" in data:  # a model without the block ignores them
+        directions = data["directions"]
+        roll = model.rollout(dynamic[:, 0], masons, tables, rng, samples, directions=directions)
+        one_step = model.one_step(dynamic, masons, tables, directions=directions)
+    else:  # as before the direction block, call for call
+        roll = model.rollout(dynamic[:, 0], masons, tables, rng, samples)
+        one_step = model.one_step(dynamic, masons, tables)
+    roll = inverse_signed_log(roll[..., 0])  # (E, S, T)
+    if settings.get("task") == "tracking":
+        target = data["targets"]
+        sim_returns = tracking_returns(eta, data["energy"], target, weight)
+        sur_returns = tracking_returns(roll, data["energy"][:, None, :], target[:, None, :], weight)
+    else:
+        cap = settings["eta_cap"]
+        sim_returns = returns(eta, data["energy"], cap, weight)
+        sur_returns = returns(roll, data["energy"][:, None, :], cap, weight)  # (E, S)
     return {
         "eta": eta,
-        "one_step": inverse_signed_log(model.one_step(dynamic, masons, tables)[..., 0]),
+        "one_step": inverse_signed_log(one_step[..., 0]),
         "persistence": inverse_signed_log(dynamic[:, :-1, 0]),
         "rollouts": roll,
-        "sim_returns": returns(eta, data["energy"], cap, weight),
-        "sur_returns": returns(roll, data["energy"][:, None, :], cap, weight),  # (E, S)
+        "sim_returns": sim_returns,
+        "sur_returns": sur_returns,
         "behaviours": [e.behaviour for e in held],
         "seeds": [e.seed for e in held],
     }
@@ -477,7 +540,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0], allow_abbrev=False)
     parser.add_argument("data", type=Path, help="folder of scripts/surrogate_data.py")
     parser.add_argument("--out", required=True, type=Path, help="the kept model (.npz); metrics beside it")
-    parser.add_argument("--routes", default="lambda,ensemble", help="routes to fit (default both)")
+    parser.add_argument(
+        "--routes",
+        default=None,
+        help="routes to fit (default both; tracking data: ensemble, the only route that sees the direction)",
+    )
     parser.add_argument("--keep", default="auto", help="auto (module docstring) or a route")
     parser.add_argument("--reason", default="chosen by --keep", help="why --keep names a route (recorded)")
     parser.add_argument("--seeds", default=None, help="episode seeds to use, e.g. 0-49 (default: every file)")
@@ -501,15 +568,28 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser = build_parser()
     args = parser.parse_args(argv)
-    routes = [r.strip() for r in args.routes.split(",") if r.strip()]
-    if not routes or any(r not in ROUTES for r in routes):
-        parser.error(f"--routes must be a list of {', '.join(ROUTES)}, got {args.routes!r}")
-    if args.keep != "auto" and args.keep not in routes:
-        parser.error(f"--keep must be auto or one of the fitted routes {routes}, got {args.keep!r}")
     if args.holdout_mod < 2:
         parser.error("--holdout-mod must be >= 2")
     settings = data_settings(args.data)
     episodes = load_episodes(args.data, settings["control_interval"], settings["max_piece"])
+    try:
+        direction = has_directions(episodes)
+    except ValueError as error:
+        parser.error(f"{args.data}: {error}")
+    tracking = settings.get("task") == "tracking"
+    if tracking and episodes and not direction:
+        parser.error(f"{args.data}: tracking episodes without their fields' directions")
+    route_text = args.routes if args.routes is not None else ("ensemble" if tracking else "lambda,ensemble")
+    routes = [r.strip() for r in route_text.split(",") if r.strip()]
+    if not routes or any(r not in ROUTES for r in routes):
+        parser.error(f"--routes must be a list of {', '.join(ROUTES)}, got {route_text!r}")
+    if tracking and "lambda" in routes:
+        parser.error(
+            "--routes: the lambda model knows fields along y only; tracking data (a turning field) are "
+            "fitted by the ensemble with the direction block (--routes ensemble)"
+        )
+    if args.keep != "auto" and args.keep not in routes:
+        parser.error(f"--keep must be auto or one of the fitted routes {routes}, got {args.keep!r}")
     if args.seeds is not None:
         try:
             wanted = set(sim.parse_seeds(args.seeds))
@@ -556,9 +636,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                 model: SurrogateModel = LambdaModel({**fold_common, **arrays}, {"settings": settings})
             else:
                 arrays, info = fit_ensemble(
-                    fold_fit, args.seed, args.members, args.hidden, args.max_epochs, args.patience
+                    fold_fit, args.seed, args.members, args.hidden, args.max_epochs, args.patience, direction
                 )
-                model = EnsembleModel({**fold_common, **arrays}, {"settings": settings})
+                meta: dict[str, Any] = {"settings": settings}
+                if direction:
+                    meta["direction_inputs"] = True
+                model = EnsembleModel({**fold_common, **arrays}, meta)
             info["fit_cpu_seconds"] = round(time.process_time() - tic, 1)
             prediction = predict(model, fold_held, settings, args.samples, args.seed)
             predictions[route].append(prediction)
@@ -596,6 +679,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     for route, model in models.items():
         model.metadata = {**provenance, "settings": settings, "route": route, "metrics": metrics[route]}
+        if model.direction:
+            model.metadata["direction_inputs"] = True
         if route == kept:
             model.save(args.out)
         if args.save_all:

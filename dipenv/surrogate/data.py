@@ -1,7 +1,8 @@
 """Simulator episodes for the surrogate: read the files of ``scripts/surrogate_data.py``.
 
-Each ``DIR/episodes/ep<seed>.npz`` holds one ``ThickeningControl`` episode (layout in that script's
-docstring). :func:`load_episodes` reads them into :class:`Episode` records with the interval table of
+Each ``DIR/episodes/ep<seed>.npz`` holds one ``ThickeningControl`` or ``ViscosityTracking`` episode (layout
+in that script's docstring; a tracking episode also holds each interval's field direction and the
+target). :func:`load_episodes` reads them into :class:`Episode` records with the interval table of
 their schedule (:func:`dipenv.surrogate.features.interval_table`), which the fit and the checks feed to
 the models exactly as the environment does.
 """
@@ -28,12 +29,18 @@ class Episode:
 
     Attributes:
         seed: the episode's seed (its file name).
-        obs: (T + 1, 15) observations, before the first action and after each interval.
-        action: (T,) actions; ``mason``: (T,) ``Mn_ref`` in force (``inf``: off).
+        obs: (T + 1, 15) observations (tracking: (T + 1, 21)), before the first action and after each
+            interval.
+        action: (T,) actions (tracking: (T, 3)); ``mason``: (T,) ``Mn_ref`` in force (``inf``: off).
         eta_r, n1, n2, shear_stress, shear_rate, shear_rate_end, field_energy, reward: (T,) per interval.
         schedule: ``{"times": [...], "rates": [...]}``.
         behaviour: the behaviour policy's name; ``start_index``: the train start state.
         table: the interval table of the schedule.
+        direction: (T, 3) the field direction of each interval as the env reports it
+            (``info["field_direction"]``, also while the field is off), or None (``ThickeningControl``:
+            along ``y``).
+        target: the target's knots ``{"times": [...], "values": [...]}`` (tracking episodes), or None.
+        target_eta_r: (T,) the target's mean over each interval (what the reward charged), or None.
     """
 
     seed: int
@@ -52,6 +59,9 @@ class Episode:
     behaviour: str
     start_index: int
     table: IntervalTable
+    direction: np.ndarray | None = None
+    target: dict[str, list[float]] | None = None
+    target_eta_r: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -66,7 +76,9 @@ class Episode:
 def data_settings(data_dir: str | Path) -> dict[str, Any]:
     """The env settings of a data folder (from its ``manifest.json``'s ``env_id``): ``env_id``,
     ``control_interval``, ``episode_steps``, ``max_piece``, ``n_particles``, ``volume_fraction``,
-    ``mason_min``, ``mason_max``, ``off_band``, ``eta_cap``, ``energy_weight``, the schedule ranges."""
+    ``mason_min``, ``mason_max``, ``off_band``, ``eta_cap``, ``energy_weight``, the schedule ranges; for a
+    tracking env (``task: "tracking"``) ``eta_cap`` is None and the target's ranges and preview are
+    added (``target_range``, ``target_hold_range``, ``target_ramp_range``, ``target_preview``)."""
     import gymnasium as gym
 
     import dipenv  # noqa: F401  (registers the ids)
@@ -92,6 +104,12 @@ def data_settings(data_dir: str | Path) -> dict[str, Any]:
             "ramp_range": list(env.ramp_range),  # type: ignore[attr-defined]
             "train_states": int(env.split_sizes["train"]),  # type: ignore[attr-defined]
         }
+        if hasattr(env, "target_range"):  # ViscosityTracking: a moving target instead of a cap
+            out["task"] = "tracking"
+            out["eta_cap"] = None
+            for name in ("target_range", "target_hold_range", "target_ramp_range"):
+                out[name] = list(getattr(env, name))
+            out["target_preview"] = float(env.target_preview)  # type: ignore[attr-defined]
     finally:
         env.close()
     return out
@@ -131,6 +149,17 @@ def load_episode(path: Path, seed: int, interval: float, max_piece: float) -> Ep
             behaviour=str(d["behaviour"]),
             start_index=int(d["start_index"]),
             table=table,
+            direction=np.asarray(d["field_direction"], dtype=np.float64)
+            if "field_direction" in d.files
+            else None,
+            target=(
+                {"times": d["target_times"].tolist(), "values": d["target_values"].tolist()}
+                if "target_times" in d.files
+                else None
+            ),
+            target_eta_r=np.asarray(d["target_eta_r"], dtype=np.float64)
+            if "target_eta_r" in d.files
+            else None,
         )
 
 

@@ -34,6 +34,7 @@ from dipenv.rewards import (
     DEFAULT_ENERGY_WEIGHT,
     DEFAULT_FAILURE_PENALTY,
     ThickeningPenaltyReward,
+    ViscosityTargetReward,
     default_viscosity_cap,
 )
 from dipenv.schedules import (
@@ -110,6 +111,14 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
 
     metadata = {"render_modes": [], "render_fps": 4}  # noqa: RUF012
     rate_observed: ClassVar[bool] = True
+    reset_options: ClassVar[tuple[str, ...]] = (
+        "split",
+        "index",
+        "volume_fraction",
+        "realisation",
+        "schedule",
+    )
+    """The ``reset`` options this env takes (a subclass adds its own)."""
 
     def __init__(
         self,
@@ -183,8 +192,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         self.max_piece = float(max_piece)
         self.ignored = dict(simulator_kwargs)
         self.render_mode = render_mode
-        cap = default_viscosity_cap(volume_fraction, n_particles) if eta_cap is None else float(eta_cap)
-        self.reward_function = ThickeningPenaltyReward(cap, self.energy_weight, self.failure_penalty)
+        self.reward_function: ViscosityTargetReward = self._make_reward(eta_cap)
         draw_schedule(np.random.default_rng(0), self.episode_duration, rate_range, hold_range, ramp_range)
 
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
@@ -213,6 +221,15 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
     def frame_features(self) -> list[ObservationFeature]:
         """The frame of ``ThickeningControl`` (or of the stress-only id)."""
         return thickening_frame_features(self.rate_observed)
+
+    def _make_reward(self, eta_cap: float | None) -> ViscosityTargetReward:
+        """The reward object: ``ThickeningPenaltyReward`` at ``eta_cap`` (default: the tabulated cap)."""
+        cap = (
+            default_viscosity_cap(self.volume_fraction, self.n_particles)
+            if eta_cap is None
+            else float(eta_cap)
+        )
+        return ThickeningPenaltyReward(cap, self.energy_weight, self.failure_penalty)
 
     def settings(self) -> dict[str, Any]:
         """Every setting that shapes an episode (JSON-ready), the model's identity included."""
@@ -274,11 +291,10 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         ``volume_fraction``; see the class docstring)."""
         super().reset(seed=seed)
         options = dict(options or {})
-        unknown = set(options) - {"split", "index", "volume_fraction", "realisation", "schedule"}
+        unknown = set(options) - set(self.reset_options)
         if unknown:
             raise ValueError(
-                f"unknown reset options {sorted(unknown)}; allowed: split, index, volume_fraction, "
-                "realisation, schedule"
+                f"unknown reset options {sorted(unknown)}; allowed: {', '.join(self.reset_options)}"
             )
         realisation = options.get("realisation", 0)
         if isinstance(realisation, bool) or not isinstance(realisation, int | np.integer) or realisation < 0:
@@ -304,6 +320,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
             schedule = self.fixed_schedule(split, int(index))
         self._schedule = schedule
         self._table = interval_table(schedule, self.episode_steps, self.control_interval, self.max_piece)
+        self._after_schedule(split, int(index), options)
 
         model = self.model
         matches = np.flatnonzero(model.start_indices == int(index)) if split == "train" else np.empty(0, int)
@@ -390,6 +407,10 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         return None
 
     # -- internals ------------------------------------------------------------------------------------------
+    def _after_schedule(self, split: str, index: int, options: dict[str, Any]) -> None:
+        """Called by ``reset`` once the schedule is set, before the start frame is chosen (the tracking
+        surrogate draws its target here, as the simulator env draws it after the schedule)."""
+
     def _frame(self, dynamic: np.ndarray, rate_end: float, shear_stress: float) -> np.ndarray:
         mason = self._mason
         energy_fraction = 0.0 if math.isinf(mason) else min(1.0, self.mapping.mason_min / mason)

@@ -14,6 +14,15 @@ checks, so that a model is always fed the inputs it was fitted on.
 * **The field**: ``Mn_ref`` (``inf``: off) of the interval and of the one before it, as
   ``(on, log10 Mn_ref, 1/Mn_ref)`` (:func:`field_features`); these do not depend on the action map, so a
   model serves ``-v1`` and ``-v2`` alike.
+* **The field's direction** (optional; the tracking surrogate's models, ``ViscosityTracking``): the
+  traceless symmetric tensor ``e e^T - I/3`` of the direction ``e`` of the interval's field and of the one
+  before it, as its 5 independent components ``(xx, yy, xy, xz, yz)`` (:func:`direction_features`). It is
+  given also while the field is off, because the frame's angular g bins are taken relative to the
+  direction last asked for then too. It is invariant under ``e -> -e``, as the physics is
+  (dipolophoresis is quadratic in the field), so the inputs need no choice of sign. The block comes after
+  the inputs above (:data:`N_DIRECTION_INPUTS` more, :data:`DIRECTION_INPUT_LABELS`), and only a model
+  configured with it is fed it, so that a model fitted without it sees exactly the inputs it was fitted
+  on, bit for bit.
 """
 
 from __future__ import annotations
@@ -134,6 +143,51 @@ def interval_table(
     return IntervalTable(start, mean, end, piece_rate, piece_time, schedule(0.0), tuple(lists))
 
 
+N_DIRECTION = 5
+"""Components of one interval's direction block (:func:`direction_features`)."""
+
+DIRECTION_COMPONENTS = ("xx", "yy", "xy", "xz", "yz")
+"""The components of ``e e^T - I/3`` in a direction block (``zz = -(xx + yy)`` is not independent)."""
+
+Y_AXIS = (0.0, 1.0, 0.0)
+"""The field direction of ``ThickeningControl`` (the velocity gradient), what a direction-aware model
+assumes when it is given no direction (and the direction before an episode's first interval: the envs
+reset the field to ``y``, off)."""
+
+THIRD = 1.0 / 3.0
+
+
+def direction_features(direction: np.ndarray | tuple[float, ...]) -> np.ndarray:
+    """``(..., 5)``: ``e e^T - I/3`` of the unit direction ``e`` (``(..., 3)``) as ``(xx, yy, xy, xz, yz)``
+    (:data:`DIRECTION_COMPONENTS`; ``zz = -(xx + yy)``). ``e`` and ``-e`` give the same values. ``e`` is
+    used as given (the envs' directions are unit vectors). The block does not depend on whether the field
+    is on: the on/off flags of the field block say that, and the frame's angular g bins are taken relative
+    to the direction last asked for also while the field is off (``ViscosityTracking``), so the model needs
+    it then too."""
+    e = np.asarray(direction, dtype=np.float64)
+    x, y, z = e[..., 0], e[..., 1], e[..., 2]
+    return np.stack([x * x - THIRD, y * y - THIRD, x * y, x * z, y * z], axis=-1)
+
+
+def direction_tensor(block: np.ndarray) -> np.ndarray:
+    """``(..., 3, 3)``: the symmetric traceless tensor ``e e^T - I/3`` of a direction block ``(..., 5)``
+    (the inverse of :func:`direction_features`' packing)."""
+    b = np.asarray(block, dtype=np.float64)
+    xx, yy, xy, xz, yz = (b[..., i] for i in range(N_DIRECTION))
+    rows = [[xx, xy, xz], [xy, yy, yz], [xz, yz, -(xx + yy)]]
+    return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+
+def direction_features_into(out: np.ndarray, offset: int, direction: np.ndarray | tuple[float, ...]) -> None:
+    """Write :func:`direction_features` of one interval into ``out[offset : offset + 5]``."""
+    x, y, z = float(direction[0]), float(direction[1]), float(direction[2])
+    out[offset] = x * x - THIRD
+    out[offset + 1] = y * y - THIRD
+    out[offset + 2] = x * y
+    out[offset + 3] = x * z
+    out[offset + 4] = y * z
+
+
 def field_features_into(out: np.ndarray, offset: int, mason: float) -> None:
     """Write :func:`field_features` of one ``Mn_ref`` into ``out[offset : offset + 3]`` (no allocation)."""
     if math.isinf(mason):
@@ -150,8 +204,11 @@ def mlp_inputs_into(
     rate_start: float,
     rate_mean: float,
     rate_end: float,
+    previous_direction: np.ndarray | tuple[float, ...] | None = None,
+    direction: np.ndarray | tuple[float, ...] | None = None,
 ) -> np.ndarray:
-    """:func:`mlp_inputs` of one interval written into ``out`` (N_MLP_INPUTS,), for the env's step."""
+    """:func:`mlp_inputs` of one interval written into ``out`` (the env's step): ``(N_MLP_INPUTS,)``, or
+    ``(N_MLP_INPUTS + N_DIRECTION_INPUTS,)`` with the direction block (a direction of ``None``: ``y``)."""
     out[:N_DYNAMIC] = dynamic
     field_features_into(out, N_DYNAMIC, previous_mason)
     field_features_into(out, N_DYNAMIC + 3, mason)
@@ -163,6 +220,11 @@ def mlp_inputs_into(
     else:
         value = math.log10(mason * rate_mean)
         out[N_DYNAMIC + 9] = min(max(value, LOG_INSTANT_RANGE[0]), LOG_INSTANT_RANGE[1])
+    if out.shape[0] > N_MLP_INPUTS:
+        direction_features_into(
+            out, N_MLP_INPUTS, Y_AXIS if previous_direction is None else previous_direction
+        )
+        direction_features_into(out, N_MLP_INPUTS + N_DIRECTION, Y_AXIS if direction is None else direction)
     return out
 
 
@@ -204,6 +266,20 @@ MLP_INPUT_LABELS = (
 )
 
 
+N_DIRECTION_INPUTS = 2 * N_DIRECTION
+"""Inputs of the direction block (the previous interval's, then this one's)."""
+
+DIRECTION_INPUT_LABELS = (
+    *(f"prev_direction_{c}" for c in DIRECTION_COMPONENTS),
+    *(f"direction_{c}" for c in DIRECTION_COMPONENTS),
+)
+
+
+def mlp_input_labels(direction: bool) -> tuple[str, ...]:
+    """The inputs of an ensemble with (``direction``) or without the direction block."""
+    return (*MLP_INPUT_LABELS, *DIRECTION_INPUT_LABELS) if direction else MLP_INPUT_LABELS
+
+
 def mlp_inputs(
     dynamic: np.ndarray,
     previous_mason: np.ndarray | float,
@@ -211,8 +287,13 @@ def mlp_inputs(
     rate_start: np.ndarray | float,
     rate_mean: np.ndarray | float,
     rate_end: np.ndarray | float,
+    previous_direction: np.ndarray | None = None,
+    direction: np.ndarray | None = None,
+    direction_block: bool = False,
 ) -> np.ndarray:
-    """``(..., N_MLP_INPUTS)`` ensemble inputs (:data:`MLP_INPUT_LABELS`), unscaled."""
+    """``(..., N_MLP_INPUTS)`` ensemble inputs (:data:`MLP_INPUT_LABELS`), unscaled; with
+    ``direction_block``, ``(..., N_MLP_INPUTS + N_DIRECTION_INPUTS)``: the direction block of the previous
+    and this interval appended (``previous_direction``, ``direction``: ``(..., 3)``; ``None``: ``y``)."""
     dynamic = np.asarray(dynamic, dtype=np.float64)
     batch = dynamic.shape[:-1]
     rates = np.stack(
@@ -229,9 +310,21 @@ def mlp_inputs(
             np.broadcast_to(field_features(mason), (*batch, 3)),
             rates,
             np.broadcast_to(log_instant_mason(mason, rate_mean), batch)[..., None],
-        ],
+        ]
+        + (
+            [
+                np.broadcast_to(direction_features(_or_y(previous_direction)), (*batch, N_DIRECTION)),
+                np.broadcast_to(direction_features(_or_y(direction)), (*batch, N_DIRECTION)),
+            ]
+            if direction_block
+            else []
+        ),
         axis=-1,
     )
+
+
+def _or_y(direction: np.ndarray | None) -> np.ndarray:
+    return np.asarray(Y_AXIS if direction is None else direction, dtype=np.float64)
 
 
 def strain_of(table: IntervalTable) -> np.ndarray:

@@ -7,7 +7,10 @@ Two model kinds, one interface (:class:`SurrogateModel`), stored as one ``.npz``
   al. 2018; MBPO, Janner et al. 2019). Each member maps the frame's dynamic part, the field of this and the
   previous interval and the interval's rates (:func:`dipenv.surrogate.features.mlp_inputs`) to a Gaussian
   (mean and log-variance, soft-bounded) of the change of the dynamic part over the interval. A rollout
-  draws one member per episode and samples each step from its Gaussian.
+  draws one member per episode and samples each step from its Gaussian. A model fitted on episodes with
+  a turning field (``ViscosityTracking``) also sees the direction block of both intervals (metadata
+  ``direction_inputs``: true; :attr:`EnsembleModel.direction`); one fitted without it does not, and its
+  inputs and outputs are those of the version before the block existed, bit for bit.
 * :class:`LambdaModel` (``kind = "lambda"``): structural kinetics (Moore 1959; Mewis & Wagner, *Adv.
   Colloid Interface Sci.* 147-148, 2009). Two structure variables relax in strain toward steady values
   set by the instantaneous Mason number ``Mn = rate x Mn_ref``: ``lambda_F``, the field's layered
@@ -35,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from dipenv.surrogate.features import (
+    N_DIRECTION_INPUTS,
     N_DYNAMIC,
     N_MLP_INPUTS,
     IntervalTable,
@@ -256,7 +260,8 @@ def to_dynamic(outputs: np.ndarray) -> np.ndarray:
 
 
 class SurrogateModel:
-    """A fitted dynamics model of ``ThickeningControl``'s frames (see the module docstring).
+    """A fitted dynamics model of the frames' dynamic part of ``ThickeningControl`` (or, with
+    :attr:`direction`, of ``ViscosityTracking``; see the module docstring).
 
     Attributes:
         metadata: provenance, env settings of the data (``settings``), fit metrics.
@@ -266,6 +271,9 @@ class SurrogateModel:
     """
 
     kind = ""
+    direction: bool = False
+    """Whether the model sees the field's direction (the direction block of
+    :mod:`dipenv.surrogate.features`); a model without it knows only fields along ``y``."""
 
     def __init__(self, arrays: dict[str, np.ndarray], metadata: dict[str, Any]) -> None:
         self.arrays = arrays
@@ -286,9 +294,18 @@ class SurrogateModel:
         raise NotImplementedError
 
     def step(
-        self, previous_mason: float, mason: float, table: IntervalTable, k: int, rng: np.random.Generator
+        self,
+        previous_mason: float,
+        mason: float,
+        table: IntervalTable,
+        k: int,
+        rng: np.random.Generator,
+        previous_direction: np.ndarray | None = None,
+        direction: np.ndarray | None = None,
     ) -> np.ndarray:
-        """Sample interval ``k``'s dynamic frame part (12,; a buffer reused by the next call)."""
+        """Sample interval ``k``'s dynamic frame part (12,; a buffer reused by the next call). The
+        directions (unit vectors of the previous and this interval's field; ``None``: ``y``) are read only
+        by a model with :attr:`direction`."""
         raise NotImplementedError
 
     # -- batches (fit and checks) --------------------------------------------------------------------------
@@ -300,21 +317,34 @@ class SurrogateModel:
         rng: np.random.Generator,
         samples: int,
         previous: np.ndarray | None = None,
+        directions: np.ndarray | None = None,
+        previous_direction: np.ndarray | None = None,
     ) -> np.ndarray:
         """Open-loop rollouts: (E, samples, T, 12) sampled dynamic parts of E episodes from their start
         frames (E, 12) under the fields ``masons`` (E, T), over the first T intervals of each table
         (:meth:`IntervalTable.window` starts one mid-episode). ``previous`` (E,): the field ``Mn_ref``
-        of the interval before the first (default: off, an episode's start)."""
+        of the interval before the first (default: off, an episode's start). ``directions`` (E, T, 3) and
+        ``previous_direction`` (E, 3): the fields' directions (default ``y``; read only by a model with
+        :attr:`direction`)."""
         raise NotImplementedError
 
-    def one_step(self, dynamic: np.ndarray, masons: np.ndarray, tables: list[IntervalTable]) -> np.ndarray:
+    def one_step(
+        self,
+        dynamic: np.ndarray,
+        masons: np.ndarray,
+        tables: list[IntervalTable],
+        directions: np.ndarray | None = None,
+    ) -> np.ndarray:
         """(E, T, 12) the predicted mean of each interval's dynamic part given the observed frames before
-        it (``dynamic``: (E, T + 1, 12), the episodes' observed dynamic parts)."""
+        it (``dynamic``: (E, T + 1, 12), the episodes' observed dynamic parts; ``directions`` (E, T, 3):
+        the fields' directions, default ``y``, read only by a model with :attr:`direction`)."""
         raise NotImplementedError
 
     def save(self, path: str | Path) -> None:
         """Write the model (arrays and the JSON metadata) to ``path``."""
         meta = {**self.metadata, "kind": self.kind}
+        if self.direction:  # written only when set: a model without the block is saved as before
+            meta["direction_inputs"] = True
         payload: dict[str, Any] = {"metadata": np.array(json.dumps(meta)), **self.arrays}
         np.savez_compressed(path, **payload)
 
@@ -332,7 +362,8 @@ def _softbound(logvar: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndar
 class EnsembleModel(SurrogateModel):
     """Probabilistic ensemble of MLPs (arrays ``w1 b1 w2 b2 w3 b3`` with a leading member axis, ``x_mean
     x_std`` input scaling, ``y_mean y_std`` output scaling of the change of the dynamic part,
-    ``max_logvar min_logvar``)."""
+    ``max_logvar min_logvar``). Its inputs carry the direction block when the metadata say
+    ``direction_inputs: true`` (:attr:`direction`); ``w1`` must have that many rows."""
 
     kind = "ensemble"
 
@@ -342,15 +373,20 @@ class EnsembleModel(SurrogateModel):
         self.w = [a["w1"], a["w2"], a["w3"]]
         self.b = [a["b1"], a["b2"], a["b3"]]
         self.members = int(self.w[0].shape[0])
-        if self.w[0].shape[1] != N_MLP_INPUTS or self.w[2].shape[2] != 2 * N_DYNAMIC:
-            raise ValueError(f"ensemble weights of shapes {[w.shape for w in self.w]} do not fit the inputs")
+        self.direction = bool(metadata.get("direction_inputs", False))
+        inputs = N_MLP_INPUTS + (N_DIRECTION_INPUTS if self.direction else 0)
+        if self.w[0].shape[1] != inputs or self.w[2].shape[2] != 2 * N_DYNAMIC:
+            raise ValueError(
+                f"ensemble weights of shapes {[w.shape for w in self.w]} do not fit the {inputs} inputs "
+                f"(direction_inputs: {self.direction})"
+            )
         self.x_mean, self.x_std = a["x_mean"], a["x_std"]
         self.y_mean, self.y_std = a["y_mean"], a["y_std"]
         self.max_logvar, self.min_logvar = a["max_logvar"], a["min_logvar"]
         self._member = 0
         self._weights = ([w[0] for w in self.w], [b[0] for b in self.b])
         self._frame = np.zeros(N_DYNAMIC)
-        self._x = np.zeros(N_MLP_INPUTS)
+        self._x = np.zeros(inputs)
 
     def _forward(self, x: np.ndarray, member: int | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mean and variance of the scaled change; ``x`` (B, I) unscaled, ``member`` int or (B,)."""
@@ -378,7 +414,14 @@ class EnsembleModel(SurrogateModel):
         self._frame[:] = frame
 
     def step(
-        self, previous_mason: float, mason: float, table: IntervalTable, k: int, rng: np.random.Generator
+        self,
+        previous_mason: float,
+        mason: float,
+        table: IntervalTable,
+        k: int,
+        rng: np.random.Generator,
+        previous_direction: np.ndarray | None = None,
+        direction: np.ndarray | None = None,
     ) -> np.ndarray:
         x = mlp_inputs_into(
             self._x,
@@ -388,6 +431,8 @@ class EnsembleModel(SurrogateModel):
             float(table.rate_start[k]),
             float(table.rate_mean[k]),
             float(table.rate_end[k]),
+            previous_direction,
+            direction,
         )
         w, b = self._weights
         h = (x - self.x_mean) / self.x_std
@@ -403,13 +448,21 @@ class EnsembleModel(SurrogateModel):
         return frame
 
     def _inputs(
-        self, frames: np.ndarray, masons: np.ndarray, tables: list[IntervalTable], k: int
+        self,
+        frames: np.ndarray,
+        masons: np.ndarray,
+        tables: list[IntervalTable],
+        k: int,
+        directions: np.ndarray | None = None,
     ) -> np.ndarray:
         previous = np.array([m[k - 1] if k > 0 else np.inf for m in masons])
         start = np.array([t.rate_start[k] for t in tables])
         mean = np.array([t.rate_mean[k] for t in tables])
         end = np.array([t.rate_end[k] for t in tables])
-        return mlp_inputs(frames, previous, masons[:, k], start, mean, end)
+        if not self.direction:
+            return mlp_inputs(frames, previous, masons[:, k], start, mean, end)
+        before, now = _directions_at(directions, masons.shape[0], k)
+        return mlp_inputs(frames, previous, masons[:, k], start, mean, end, before, now, direction_block=True)
 
     def rollout(
         self,
@@ -419,6 +472,8 @@ class EnsembleModel(SurrogateModel):
         rng: np.random.Generator,
         samples: int,
         previous: np.ndarray | None = None,
+        directions: np.ndarray | None = None,
+        previous_direction: np.ndarray | None = None,
     ) -> np.ndarray:
         n_ep, steps = masons.shape
         members = rng.integers(self.members, size=n_ep * samples)
@@ -429,30 +484,75 @@ class EnsembleModel(SurrogateModel):
             np.repeat(np.stack([getattr(t, name)[:steps] for t in tables]), samples, axis=0)
             for name in ("rate_start", "rate_mean", "rate_end")
         )
+        if self.direction:
+            dirs = _y_axes((n_ep, steps)) if directions is None else np.asarray(directions, dtype=np.float64)
+            first_dir = (
+                _y_axes((n_ep,)) if previous_direction is None else np.asarray(previous_direction, float)
+            )
+            rep_dirs = np.repeat(dirs, samples, axis=0)
+            before_dirs = np.concatenate(
+                [np.repeat(first_dir, samples, axis=0)[:, None], rep_dirs[:, :-1]], axis=1
+            )
         current = np.repeat(np.asarray(frames, dtype=np.float64), samples, axis=0)
         out = np.empty((n_ep * samples, steps, N_DYNAMIC))
         for k in range(steps):
-            x = mlp_inputs(current, before[:, k], rep_masons[:, k], start[:, k], mean_rate[:, k], end[:, k])
+            if self.direction:
+                x = mlp_inputs(
+                    current,
+                    before[:, k],
+                    rep_masons[:, k],
+                    start[:, k],
+                    mean_rate[:, k],
+                    end[:, k],
+                    before_dirs[:, k],
+                    rep_dirs[:, k],
+                    direction_block=True,
+                )
+            else:
+                x = mlp_inputs(
+                    current, before[:, k], rep_masons[:, k], start[:, k], mean_rate[:, k], end[:, k]
+                )
             mean, var = self._forward(x, members)
             change = mean + np.sqrt(var) * rng.standard_normal(mean.shape)
             current = np.clip(current + self.y_mean + self.y_std * change, self.low, self.high)
             out[:, k] = current
         return out.reshape(n_ep, samples, steps, N_DYNAMIC)
 
-    def one_step(self, dynamic: np.ndarray, masons: np.ndarray, tables: list[IntervalTable]) -> np.ndarray:
+    def one_step(
+        self,
+        dynamic: np.ndarray,
+        masons: np.ndarray,
+        tables: list[IntervalTable],
+        directions: np.ndarray | None = None,
+    ) -> np.ndarray:
         n_ep, steps = masons.shape
         out = np.empty((n_ep, steps, N_DYNAMIC))
         for k in range(steps):
-            x = self._inputs(dynamic[:, k], masons, tables, k)
+            x = self._inputs(dynamic[:, k], masons, tables, k, directions)
             means = [self._forward(x, m)[0] for m in range(self.members)]
             change = np.mean(means, axis=0)
             out[:, k] = np.clip(dynamic[:, k] + self.y_mean + self.y_std * change, self.low, self.high)
         return out
 
 
+def _y_axes(shape: tuple[int, ...]) -> np.ndarray:
+    """``shape + (3,)`` copies of ``y`` (the direction of a model given none)."""
+    return np.broadcast_to(np.array([0.0, 1.0, 0.0]), (*shape, 3)).copy()
+
+
+def _directions_at(directions: np.ndarray | None, n_ep: int, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The directions (E, 3) of interval ``k - 1`` (``y`` before the first) and of ``k`` of
+    ``directions`` (E, T, 3) (``None``: every field along ``y``)."""
+    if directions is None:
+        return _y_axes((n_ep,)), _y_axes((n_ep,))
+    dirs = np.asarray(directions, dtype=np.float64)
+    return (dirs[:, k - 1] if k > 0 else _y_axes((n_ep,))), dirs[:, k]
+
+
 class LambdaModel(SurrogateModel):
     """Structural-kinetics model (arrays ``theta`` (9,) :data:`LAMBDA_PARAMETERS`, ``readout`` (11, 12),
-    ``rho_a rho_b`` (12,), ``var_coef`` (3, 12) and ``var_floor`` (12,), ``chol`` (12, 12))."""
+    ``rho_a rho_b`` (12,), ``var_coef`` (3, 12) and ``var_floor`` (12,), ``chol`` (12, 12)). It knows
+    fields along ``y`` only: directions passed to it are ignored."""
 
     kind = "lambda"
 
@@ -495,7 +595,14 @@ class LambdaModel(SurrogateModel):
         self._residual[:] = (to_output_space(np.asarray(frame)[None, :]) - self.mean_outputs(phi0))[0]
 
     def step(
-        self, previous_mason: float, mason: float, table: IntervalTable, k: int, rng: np.random.Generator
+        self,
+        previous_mason: float,
+        mason: float,
+        table: IntervalTable,
+        k: int,
+        rng: np.random.Generator,
+        previous_direction: np.ndarray | None = None,
+        direction: np.ndarray | None = None,
     ) -> np.ndarray:
         phi = self._phi
         lam_f, lam_t, strain = lambda_interval_scalar(
@@ -526,6 +633,8 @@ class LambdaModel(SurrogateModel):
         rng: np.random.Generator,
         samples: int,
         previous: np.ndarray | None = None,
+        directions: np.ndarray | None = None,
+        previous_direction: np.ndarray | None = None,
     ) -> np.ndarray:
         if previous is not None and np.isfinite(previous).any():
             raise ValueError(
@@ -548,7 +657,13 @@ class LambdaModel(SurrogateModel):
             )
         return out.reshape(n_ep, samples, steps, N_DYNAMIC)
 
-    def one_step(self, dynamic: np.ndarray, masons: np.ndarray, tables: list[IntervalTable]) -> np.ndarray:
+    def one_step(
+        self,
+        dynamic: np.ndarray,
+        masons: np.ndarray,
+        tables: list[IntervalTable],
+        directions: np.ndarray | None = None,
+    ) -> np.ndarray:
         n_ep, steps = masons.shape
         phis, strains = self.deterministic(masons, tables)
         mean = self.mean_outputs(phis)
