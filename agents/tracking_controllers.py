@@ -28,9 +28,12 @@ matter), with ``bind(env)`` and ``reset()`` as the controllers of :mod:`agents.c
 **Evaluation.** The machinery of :mod:`agents.controllers` and :mod:`agents.open_loop` rescores stored
 episodes with ``reward(eta_r, energy)`` at one fixed target and reports time above a cap; the tracking
 reward's target changes every interval, so these controllers are not registered there. Instead
-:func:`play_episodes` plays N episodes of a controller on a split and returns each episode's return, mean
-``|eta_r - target|``, mean field energy and failure flag; :func:`summarise` averages them. The fresh split
-is refused unless ``final_evaluation=True`` (``docs/thickening_control.md#the-fresh-split``).
+:func:`play_episode` plays one episode of a policy (a controller, or a trained policy) and returns its
+return, mean ``|eta_r - target|``, mean field energy, failure flag and per-interval traces;
+:func:`play_episodes` plays N episodes of a controller on a split and :func:`summarise` averages them. The
+fresh split is refused unless ``final_evaluation=True`` (``docs/thickening_control.md#the-fresh-split``).
+The command ``python -m agents.tracking`` tunes these controllers on validation and plays them, and trained
+policies, on the same episodes (:mod:`agents.tracking`).
 """
 
 from __future__ import annotations
@@ -68,8 +71,6 @@ TARGET_LABELS = {
 reward charges), or ``target_preview`` ahead."""
 
 _FOLDER = re.compile(r"^phi(?P<phi>[0-9.]+)_(?P<direction>[a-z]+)$")
-
-
 
 
 def _unslog(value: float) -> float:
@@ -380,23 +381,9 @@ def make_tracking_controller(
     raise ValueError(f"controller must be one of {', '.join(TRACKING_CONTROLLERS)}, got {kind!r}")
 
 
-def play_episodes(
-    env: Any,
-    controller: Any,
-    split: str = "validation",
-    episodes: int | None = None,
-    realisations: int = 1,
-    final_evaluation: bool = False,
-) -> list[dict[str, Any]]:
-    """Play ``controller`` (bound here) on the first ``episodes`` states of ``split`` (default all),
-    ``realisations`` times each (:mod:`dipenv.realisations`), and return per episode: ``split``, ``index``,
-    ``realisation``, ``steps``, ``failed``, ``return``, ``mean_abs_error`` (mean over intervals of
-    ``|eta_r - target_eta_r|``), ``mean_energy`` (mean ``<eps E0^2>``) and the per-interval ``eta_r``,
-    ``target_eta_r`` and ``reward``.
-
-    ``split`` is ``validation``, ``test`` or ``fresh`` (fixed rate schedules and targets); ``fresh`` only
-    with ``final_evaluation=True``: nothing may be tuned or selected on it."""
-    unwrapped = env.unwrapped
+def _check_split(split: str, final_evaluation: bool) -> None:
+    """``ValueError`` unless ``split`` has fixed rate schedules and targets; ``fresh`` only with
+    ``final_evaluation``."""
     if split not in ("validation", "test", "fresh"):
         raise ValueError(
             f"split must be validation, test or fresh (fixed schedules and targets), got {split!r}"
@@ -407,6 +394,105 @@ def play_episodes(
             "(docs/thickening_control.md#the-fresh-split): "
             "pass final_evaluation=True only there"
         )
+
+
+def play_episode(
+    env: Any,
+    policy: Any,
+    split: str,
+    index: int,
+    realisation: int = 0,
+    schedule: dict[str, Any] | None = None,
+    final_evaluation: bool = False,
+) -> dict[str, Any]:
+    """One episode of ``policy`` (``obs -> action``; a controller must be bound to ``env`` first, and its
+    ``reset()``, where it has one, is called here) from start state ``index`` of ``split``, realisation
+    ``realisation``: ``env.reset(seed=0, options={"split", "index"[, "realisation"][, "schedule"]})``.
+    ``schedule`` (``{"times", "rates"}``) replaces the split's rate schedule ``index``; the target stays
+    the split's target ``index``.
+
+    Returns ``split``, ``index``, ``realisation``, ``steps``, ``failed``, ``return``, ``mean_abs_error``
+    (mean over intervals of ``|eta_r - target_eta_r|``; NaN for a failed episode), ``mean_energy`` (mean
+    ``<eps E0^2>``; NaN for a failed episode) and the per-interval traces ``eta_r``, ``target_eta_r``,
+    ``reward`` (with a failed step's penalty), ``time`` (since the episode start, at each interval's end),
+    ``shear_rate`` (interval mean), ``mason_number`` (``Mn_ref``; inf: off), ``field_direction``,
+    ``field_energy`` and ``action``. ``fresh`` only with ``final_evaluation=True``."""
+    _check_split(split, final_evaluation)
+    options: dict[str, Any] = {"split": split, "index": index}
+    if realisation:
+        options["realisation"] = realisation
+    if schedule is not None:
+        options["schedule"] = schedule
+    obs, _ = env.reset(seed=0, options=options)
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset()
+    traces: dict[str, list[Any]] = {
+        key: []
+        for key in (
+            "eta_r",
+            "target_eta_r",
+            "reward",
+            "time",
+            "shear_rate",
+            "mason_number",
+            "field_direction",
+            "field_energy",
+            "action",
+        )
+    }
+    failed = False
+    done = False
+    while not done:
+        action = policy(obs)
+        obs, reward, terminated, truncated, info = env.step(action)
+        traces["reward"].append(float(reward))
+        done = terminated or truncated
+        if info.get("simulation_failed"):
+            failed = True
+            break
+        traces["eta_r"].append(float(info["eta_r"]))
+        traces["target_eta_r"].append(float(info["target_eta_r"]))
+        traces["field_energy"].append(float(info["field_energy"]))
+        traces["time"].append(float(info["time"]))
+        traces["shear_rate"].append(float(info["shear_rate"]))
+        traces["mason_number"].append(float(info["mason_number"]))
+        traces["field_direction"].append([float(x) for x in np.asarray(info["field_direction"]).reshape(-1)])
+        traces["action"].append([float(x) for x in np.asarray(action).reshape(-1)])
+    errors = np.abs(np.subtract(traces["eta_r"], traces["target_eta_r"]))
+    energies = traces["field_energy"]
+    return {
+        "split": split,
+        "index": index,
+        "realisation": realisation,
+        "steps": len(traces["reward"]),
+        "failed": failed,
+        "return": float(np.sum(traces["reward"])),
+        "mean_abs_error": float(errors.mean()) if errors.size and not failed else math.nan,
+        "mean_energy": float(np.mean(energies)) if energies and not failed else math.nan,
+        **traces,
+    }
+
+
+def play_episodes(
+    env: Any,
+    controller: Any,
+    split: str = "validation",
+    episodes: int | None = None,
+    realisations: int = 1,
+    final_evaluation: bool = False,
+) -> list[dict[str, Any]]:
+    """Play ``controller`` (bound here) on the first ``episodes`` states of ``split`` (default all),
+    ``realisations`` times each (:mod:`dipenv.realisations`), and return per episode what
+    :func:`play_episode` returns: ``split``, ``index``, ``realisation``, ``steps``, ``failed``, ``return``,
+    ``mean_abs_error`` (mean over intervals of ``|eta_r - target_eta_r|``), ``mean_energy`` (mean
+    ``<eps E0^2>``) and the per-interval ``eta_r``, ``target_eta_r``, ``reward`` (and the field, rate and
+    time traces).
+
+    ``split`` is ``validation``, ``test`` or ``fresh`` (fixed rate schedules and targets); ``fresh`` only
+    with ``final_evaluation=True``: nothing may be tuned or selected on it."""
+    unwrapped = env.unwrapped
+    _check_split(split, final_evaluation)
     size = unwrapped.split_sizes[split]
     count = size if episodes is None else episodes
     if isinstance(count, bool) or not isinstance(count, int) or not 1 <= count <= size:
@@ -414,47 +500,11 @@ def play_episodes(
     if isinstance(realisations, bool) or not isinstance(realisations, int) or realisations < 1:
         raise ValueError(f"realisations must be an integer >= 1, got {realisations!r}")
     controller.bind(env)
-    out = []
-    for index in range(count):
-        for realisation in range(realisations):
-            options: dict[str, Any] = {"split": split, "index": index}
-            if realisation:
-                options["realisation"] = realisation
-            obs, _ = env.reset(seed=0, options=options)
-            controller.reset()
-            etas: list[float] = []
-            targets: list[float] = []
-            rewards: list[float] = []
-            energies: list[float] = []
-            failed = False
-            done = False
-            while not done:
-                obs, reward, terminated, truncated, info = env.step(controller(obs))
-                rewards.append(float(reward))
-                done = terminated or truncated
-                if info.get("simulation_failed"):
-                    failed = True
-                    break
-                etas.append(float(info["eta_r"]))
-                targets.append(float(info["target_eta_r"]))
-                energies.append(float(info["field_energy"]))
-            errors = np.abs(np.subtract(etas, targets))
-            out.append(
-                {
-                    "split": split,
-                    "index": index,
-                    "realisation": realisation,
-                    "steps": len(rewards),
-                    "failed": failed,
-                    "return": float(np.sum(rewards)),
-                    "mean_abs_error": float(errors.mean()) if errors.size and not failed else math.nan,
-                    "mean_energy": float(np.mean(energies)) if energies and not failed else math.nan,
-                    "eta_r": etas,
-                    "target_eta_r": targets,
-                    "reward": rewards,
-                }
-            )
-    return out
+    return [
+        play_episode(env, controller, split, index, realisation, final_evaluation=final_evaluation)
+        for index in range(count)
+        for realisation in range(realisations)
+    ]
 
 
 def summarise(episodes: list[dict[str, Any]]) -> dict[str, float]:
@@ -481,6 +531,7 @@ __all__ = [
     "MapFeedForwardController",
     "load_direction_map",
     "make_tracking_controller",
+    "play_episode",
     "play_episodes",
     "summarise",
 ]
