@@ -104,7 +104,7 @@ def checked_env(prog: str, env_id: str, env_kwargs: dict[str, Any], **fixed: Any
     import dipenv
     from agents.rollout import make_env
 
-    known = (*dipenv.ENV_IDS, *dipenv.SURROGATE_IDS)
+    known = (*dipenv.ENV_IDS, *dipenv.SURROGATE_IDS, *dipenv.TRACKING_SURROGATE_IDS)
     if env_id not in known:
         usage_error(prog, f"--env must be one of {', '.join(known)}, got {env_id!r}")
     try:

@@ -36,8 +36,41 @@ def test_ppo_trains_on_the_surrogate_id(tmp_path) -> None:
         assert (out / name).exists()
 
 
+def test_ppo_trains_on_the_tracking_surrogate_id(tmp_path) -> None:
+    """The tracking surrogate (issue 44) through agents.train, with an untrained direction-aware model named
+    by --env-kwargs (none is shipped yet): the run finishes and validates on the surrogate."""
+    from tests.test_tracking_surrogate import V0_SETTINGS, random_direction_model
+
+    model = tmp_path / "model.npz"
+    random_direction_model(V0_SETTINGS).save(model)
+    out = tmp_path / "run"
+    train.main(
+        [
+            "--env",
+            dipenv.TRACKING_SURROGATE_IDS[0],
+            "--env-kwargs",
+            json.dumps({"model": str(model)}),
+            "--algo",
+            "ppo",
+            "--seed",
+            "0",
+            "--out",
+            str(out),
+            "--hyperparams",
+            "n_timesteps=128",
+            "n_envs=1",
+            "n_steps=64",
+            "eval_freq=128",
+            "checkpoint_freq=128",
+        ]
+    )
+    result = json.loads((out / "result.json").read_text())
+    assert result["timesteps"] == 128 and result["library_key"] is None
+    assert result["best_validation_return"] is not None
+
+
 def test_every_surrogate_id_has_ppo_hyperparameters() -> None:
-    for env_id in dipenv.SURROGATE_IDS:
+    for env_id in (*dipenv.SURROGATE_IDS, *dipenv.TRACKING_SURROGATE_IDS):
         params = train.load_hyperparams("ppo", env_id)
         assert params["n_timesteps"] == 1_000_000 and params["eval_freq"] == 50_000
 
