@@ -1,0 +1,98 @@
+#!/usr/bin/env bash
+# Issue 44: the viscosity-tracking study, from the surrogate's data to the validation table
+# (docs/direction.md#using-the-direction-viscosity-tracking, docs/surrogate.md#the-tracking-surrogate).
+#
+#     scripts/tracking_study.sh [STAGE ...]    # default: every stage, in order; WORKERS=1
+#
+# Every stage resumes (each command below keeps what its folder holds), so the study runs in chunks across
+# sessions: stop it, commit results/viscosity_tracking and results/tracking_surrogate_data, rerun.
+# Nothing here looks at the test or fresh splits.
+#   data       simulator episodes of ViscosityTracking-v0 for the surrogate: seeds 0-99 (train start
+#              states and schedules, four behaviours incl. random directions and y<->z switches; ~1-2 min
+#              each on one core) -> results/tracking_surrogate_data
+#   fit        the direction-aware ensemble on them (seeds s % 5 == 4 held out, plus 5-fold cross-
+#              validation) -> dipenv/data/tracking_surrogate_v0.npz (skipped when it exists)
+#   baselines  the three baselines tuned on the 8 validation episodes, each on a grid fixed beforehand:
+#              constant fields: the directions yz, ext, comp x Mn_ref 2, 5, the six best of the 31-field
+#              grid in a quasi-static prescreen (each validation episode's rate and target against the
+#              N = 500 direction map at Mn = rate x Mn_ref: predicted mean |error| 3.87-4.13, where the
+#              next best, z at Mn_ref 10 and x at 0.2-1, predict 4.07-4.26; docs/direction.md);
+#              map feed-forward: the target it reads (now, next, ahead); angle PI: kp 1, 3 x ki 0.3, 1 at
+#              Mn* 1 -> results/viscosity_tracking/validation (~80 episodes, ~2 core-hours)
+#   train      PPO, 5 seeds x 3e5 steps on the tracking surrogate (no simulator step), the settings that
+#              transferred on the thickening task -> $RUNS/surrogate_ppo, copied to
+#              results/viscosity_tracking/surrogate_ppo (models, statistics, configs, results, eval logs)
+#   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
+#              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+PY=${PYTHON:-.venv/bin/python}
+W=${WORKERS:-1}
+RUNS=${RUNS:-runs/viscosity_tracking}
+# overridable for a dry run on the tiny id (SEEDS=0-3 EPISODES=2 STEPS=256 ENV=dipenv/ViscosityTrackingTiny-v0 ...)
+ENV=${ENV:-dipenv/ViscosityTracking-v0}
+SURROGATE=${SURROGATE:-dipenv/ViscosityTrackingSurrogate-v0}
+DATA=${DATA:-results/tracking_surrogate_data}
+MODEL=${MODEL:-dipenv/data/tracking_surrogate_v0.npz}
+R=${R:-results/viscosity_tracking}
+SEEDS=${SEEDS:-0-99}
+EPISODES=${EPISODES:-8}
+STEPS=${STEPS:-300000}
+HYPER=${HYPER:-}
+SURROGATE_KWARGS=${SURROGATE_KWARGS:-"{\"model\": \"$MODEL\"}"}
+split=(--tune-split validation --tune-episodes "$EPISODES" --split validation --episodes "$EPISODES")
+stages=("$@")
+[ ${#stages[@]} -gt 0 ] || stages=(data fit baselines train validate)
+log() { echo "== $(date -u +%FT%TZ) tracking_study.sh: $*"; }
+
+for stage in "${stages[@]}"; do
+    case "$stage" in
+    data)
+        log "surrogate data: ViscosityTracking-v0 episodes 0-99"
+        "$PY" scripts/surrogate_data.py --out "$DATA" --seeds "$SEEDS" --env-id "$ENV" --workers "$W"
+        ;;
+    fit)
+        if [ -e "$MODEL" ]; then
+            log "fit: $MODEL exists, kept"
+        else
+            log "fit: the direction-aware ensemble"
+            "$PY" scripts/fit_surrogate.py "$DATA" --seeds "$SEEDS" --cross-validate \
+                --reason "issue 44: the tracking surrogate (the ensemble: the only route that sees the direction)" \
+                --out "$MODEL"
+        fi
+        ;;
+    baselines)
+        one() {
+            log "baseline $1 on validation"
+            "$PY" -m agents.tracking --env "$ENV" --controller "$@" "${split[@]}" --workers "$W" --no-progress \
+                --out "$R/validation"
+        }
+        one constant --grid direction=yz,ext,comp mason_ref=2,5
+        one map_feedforward --grid target=now,next,ahead
+        one angle_pi --grid kp=1,3 ki=0.3,1 mason_star=1
+        ;;
+    train)
+        log "PPO on the tracking surrogate, 5 seeds"
+        "$PY" -m agents.train --env "$SURROGATE" --algo ppo --seeds 0-4 --timesteps "$STEPS" --workers "$W" \
+            --no-progress --env-kwargs "$SURROGATE_KWARGS" --out "$RUNS/surrogate_ppo" $HYPER
+        mkdir -p "$R/surrogate_ppo"
+        cp "$RUNS/surrogate_ppo/manifest.json" "$R/surrogate_ppo/"
+        for seed in 0 1 2 3 4; do
+            src=$RUNS/surrogate_ppo/seed$seed
+            dst=$R/surrogate_ppo/seed$seed
+            mkdir -p "$dst/eval"
+            cp "$src"/{model.zip,vecnormalize.pkl,config.yml,manifest.json,result.json,command.txt} "$dst/"
+            cp "$src/eval/evaluations.npz" "$dst/eval/"
+        done
+        ;;
+    validate)
+        log "the surrogate-only PPO in the simulator on validation"
+        "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" "${split[@]}" \
+            --workers "$W" --no-progress --out "$R/validation"
+        ;;
+    *)
+        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate)" >&2
+        exit 2
+        ;;
+    esac
+done
