@@ -51,7 +51,7 @@ from typing import Any
 import numpy as np
 
 import sim
-from dipenv.checks import is_real_number, real_pair
+from dipenv.checks import is_real_number, real_number, real_pair
 from dipenv.schedules import FRESH_SPLIT, draw_schedule, validate_schedule
 
 TARGET_RANGE = (9.0, 25.0)
@@ -96,6 +96,30 @@ def check_target_ranges(
             )
         durations.append(pair)
     return values, durations[0], durations[1]
+
+
+TrackingArguments = tuple[tuple[float, float], tuple[float, float], tuple[float, float], float]
+
+
+def check_tracking_arguments(
+    kwargs: dict[str, Any],
+    target_range: object,
+    hold_range: object,
+    ramp_range: object,
+    target_preview: object,
+) -> TrackingArguments:
+    """The target arguments of a viscosity-tracking env (the simulator's or the surrogate's) checked:
+    ``ValueError`` when ``kwargs`` (the env's other arguments) hold a fixed target (``eta_cap``,
+    ``target_viscosity``), else the three ranges of :func:`check_target_ranges` and ``target_preview``
+    (time units, >= 0)."""
+    for name in ("eta_cap", "target_viscosity"):
+        if name in kwargs:
+            raise ValueError(
+                f"the viscosity-tracking environments take no {name} (their target follows a schedule): "
+                "set target_range, target_hold_range and target_ramp_range"
+            )
+    ranges = check_target_ranges(target_range, hold_range, ramp_range)
+    return (*ranges, real_number("target_preview", target_preview, 0.0))
 
 
 def draw_target(

@@ -19,7 +19,6 @@ import numpy as np
 
 import sim
 from dipenv.actions import direction_from_action, validate_action
-from dipenv.checks import real_number
 from dipenv.envs.thickening_control import RATE_FEATURE, SHEAR_STRESS_FEATURE, ThickeningControlEnv
 from dipenv.observations import MICROSTRUCTURE_DOC_ROWS, ObservationFeature, observation_features, signed_log
 from dipenv.rewards import ViscosityTargetReward
@@ -28,7 +27,7 @@ from dipenv.tracking import (
     TARGET_PREVIEW,
     TARGET_RAMP_RANGE,
     TARGET_RANGE,
-    check_target_ranges,
+    check_tracking_arguments,
     draw_target,
     fixed_target,
     target_to_dict,
@@ -223,16 +222,14 @@ class ViscosityTrackingEnv(ThickeningControlEnv):
         energy_weight: float = TRACKING_ENERGY_WEIGHT,
         **kwargs: Any,
     ) -> None:
-        for name in ("eta_cap", "target_viscosity"):
-            if name in kwargs:
-                raise ValueError(
-                    f"the viscosity-tracking environments take no {name} (their target follows a schedule): "
-                    "set target_range, target_hold_range and target_ramp_range"
-                )
-        self.target_range, self.target_hold_range, self.target_ramp_range = check_target_ranges(
-            target_range, target_hold_range, target_ramp_range
+        (
+            self.target_range,
+            self.target_hold_range,
+            self.target_ramp_range,
+            self.target_preview,
+        ) = check_tracking_arguments(
+            kwargs, target_range, target_hold_range, target_ramp_range, target_preview
         )
-        self.target_preview = real_number("target_preview", target_preview, 0.0)
         self._target = sim.constant(math.sqrt(self.target_range[0] * self.target_range[1]))
         super().__init__(*args, energy_weight=energy_weight, **kwargs)
 

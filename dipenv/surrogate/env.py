@@ -208,6 +208,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         self._table: IntervalTable | None = None
         self._steps = 0
         self._mason = math.inf
+        self._direction: np.ndarray = np.array((0.0, 1.0, 0.0))  # y; a direction-aware model turns it
         self._cycle = 0
         self._needs_reset = True
         self._last_eta = math.nan
@@ -359,11 +360,28 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         if self._needs_reset:
             raise RuntimeError("call reset() before step() (and after an episode has ended)")
         clipped, was_clipped = validate_action(action, (1,))
-        mason = self.mapping.mason_number(float(clipped[0]))
+        return self._advance(self.mapping.mason_number(float(clipped[0])), was_clipped)
+
+    def render(self) -> None:  # type: ignore[override]
+        return None
+
+    # -- internals ------------------------------------------------------------------------------------------
+    def _advance(
+        self, mason: float, was_clipped: bool, direction: np.ndarray | None = None
+    ) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One interval under the field ``mason`` (and ``direction``, for a direction-aware model): sample
+        the model, score, update the observation; the step's return value. Subclasses add to it through
+        :meth:`_interval_started` and :meth:`_interval_info`."""
         table = self._table
         assert table is not None
         k = self._steps
-        dynamic = self.model.step(self._mason, mason, table, k, self.np_random)
+        self._interval_started(k)
+        if direction is None:
+            dynamic = self.model.step(self._mason, mason, table, k, self.np_random)
+        else:
+            previous = self._direction
+            dynamic = self.model.step(self._mason, mason, table, k, self.np_random, previous, direction)
+            self._direction = direction
         self._mason = mason
         self._steps += 1
         eta = float(inverse_signed_log(dynamic[0]))
@@ -401,12 +419,17 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
             "eta_cap": self.reward_function.target_viscosity,
             "time": time,
         }
+        self._interval_info(k, eta, info)
         return self._observation(), reward, False, truncated, info
 
-    def render(self) -> None:  # type: ignore[override]
-        return None
+    def _interval_started(self, k: int) -> None:
+        """Called by :meth:`_advance` before interval ``k`` is sampled (the tracking surrogate sets the
+        reward's target to the interval's mean target here)."""
 
-    # -- internals ------------------------------------------------------------------------------------------
+    def _interval_info(self, k: int, eta: float, info: dict[str, Any]) -> None:
+        """Called by :meth:`_advance` with interval ``k``'s ``eta_r`` and ``info``, to edit ``info`` in
+        place (the tracking surrogate adds its target and error)."""
+
     def _after_schedule(self, split: str, index: int, options: dict[str, Any]) -> None:
         """Called by ``reset`` once the schedule is set, before the start frame is chosen (the tracking
         surrogate draws its target here, as the simulator env draws it after the schedule)."""

@@ -19,8 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 import sim
-from dipenv.actions import canonical_direction, field_energy, validate_action
-from dipenv.checks import real_number
+from dipenv.actions import canonical_direction, validate_action
 from dipenv.envs.viscosity_tracking import (
     TRACKING_ENERGY_WEIGHT,
     field_orientation,
@@ -30,14 +29,14 @@ from dipenv.envs.viscosity_tracking import (
 from dipenv.observations import ObservationFeature, signed_log
 from dipenv.rewards import ViscosityTargetReward
 from dipenv.surrogate.env import ThickeningControlSurrogateEnv
-from dipenv.surrogate.features import N_DYNAMIC, Y_AXIS, inverse_signed_log
+from dipenv.surrogate.features import N_DYNAMIC, Y_AXIS
 from dipenv.surrogate.models import SurrogateModel, load_model
 from dipenv.tracking import (
     TARGET_HOLD_RANGE,
     TARGET_PREVIEW,
     TARGET_RAMP_RANGE,
     TARGET_RANGE,
-    check_target_ranges,
+    check_tracking_arguments,
     draw_target,
     fixed_target,
     target_to_dict,
@@ -107,16 +106,14 @@ class ViscosityTrackingSurrogateEnv(ThickeningControlSurrogateEnv):
         energy_weight: float = TRACKING_ENERGY_WEIGHT,
         **kwargs: Any,
     ) -> None:
-        for name in ("eta_cap", "target_viscosity"):
-            if name in kwargs:
-                raise ValueError(
-                    f"the viscosity-tracking environments take no {name} (their target follows a schedule): "
-                    "set target_range, target_hold_range and target_ramp_range"
-                )
-        self.target_range, self.target_hold_range, self.target_ramp_range = check_target_ranges(
-            target_range, target_hold_range, target_ramp_range
+        (
+            self.target_range,
+            self.target_hold_range,
+            self.target_ramp_range,
+            self.target_preview,
+        ) = check_tracking_arguments(
+            kwargs, target_range, target_hold_range, target_ramp_range, target_preview
         )
-        self.target_preview = real_number("target_preview", target_preview, 0.0)
         if model is None:
             model = default_tracking_model_path()
             if not model.is_file():
@@ -204,58 +201,24 @@ class ViscosityTrackingSurrogateEnv(ThickeningControlSurrogateEnv):
         direction = field_orientation(
             canonical_direction(tracking_direction(float(clipped[1]), float(clipped[2])))
         )
-        table = self._table
-        assert table is not None
-        k = self._steps
-        start = k * self.control_interval
-        end = start + self.control_interval
-        target_mean = float(self._target.mean(start, end))
-        self.reward_function = replace(self.reward_function, target_viscosity=target_mean)
-        dynamic = self.model.step(self._mason, mason, table, k, self.np_random, self._direction, direction)
-        self._mason = mason
-        self._direction = direction
-        self._steps += 1
-        eta = float(inverse_signed_log(dynamic[0]))
-        n1, n2 = (float(v) for v in inverse_signed_log(dynamic[1:3]))
-        rate = float(table.rate_mean[k])
-        energy = field_energy(mason)
-        reward, terms = self.reward_function(eta, energy)
-        frame = self._frame(dynamic, float(table.rate_end[k]), eta * rate)
-        size = self._frame_size
-        if self.history_length:
-            self._obs[size:] = self._obs[:-size].copy()
-        self._obs[:size] = frame
-        truncated = self._steps >= self.episode_steps
-        self._needs_reset = truncated
-        self._last_eta = eta
-        time = self._steps * self.control_interval
-        info: dict[str, Any] = {
-            "mason_number_command": mason,
-            "mason_number": mason,
-            "field_direction": direction.copy(),
-            "action_clipped": was_clipped,
-            "strain": time,
-            "simulation_failed": False,
-            "failure_message": "",
-            "target_viscosity": target_mean,
-            "eta_r": eta,
-            "n1": n1,
-            "n2": n2,
-            "field_energy": energy,
-            "reward": reward,
-            **terms,
-            "shear_stress": eta * rate,
-            "shear_rate": rate,
-            "shear_rate_end": float(table.rate_end[k]),
-            "instantaneous_mason_number": math.inf if math.isinf(mason) else rate * mason,
-            "time": time,
-            "target_eta_r": target_mean,
-            "target_eta_r_end": float(self._target(end)),
-            "tracking_error": eta - target_mean,
-        }
-        return self._observation(), reward, False, truncated, info
+        return self._advance(mason, was_clipped, direction)
 
     # -- internals ------------------------------------------------------------------------------------------
+    def _interval_started(self, k: int) -> None:
+        start = k * self.control_interval
+        target_mean = float(self._target.mean(start, start + self.control_interval))
+        self.reward_function = replace(self.reward_function, target_viscosity=target_mean)
+
+    def _interval_info(self, k: int, eta: float, info: dict[str, Any]) -> None:
+        """As the simulator env's ``info``: the direction in force, the interval's target and error, and
+        no ``eta_cap`` (the tracking task has none)."""
+        target_mean = self.reward_function.target_viscosity
+        del info["eta_cap"]
+        info["field_direction"] = self._direction.copy()
+        info["target_eta_r"] = target_mean
+        info["target_eta_r_end"] = float(self._target((k + 1) * self.control_interval))
+        info["tracking_error"] = eta - target_mean
+
     def _after_schedule(self, split: str, index: int, options: dict[str, Any]) -> None:
         own = options.get("target")
         if own is not None:
