@@ -1,7 +1,8 @@
 """The tracking surrogate (issue 44): the direction block of the inputs, the old models' bit identity, the
 tracking data script on the tiny id (writes and resumes), the fit with the direction block, and the env
 ``dipenv/ViscosityTrackingSurrogate-v0`` (Gymnasium's checkers, the simulator env's draws and frame, the
-tracking reward on a known step)."""
+tracking reward on a known step), and the acceptance check ``scripts/surrogate_check.py`` on the tiny
+tracking id."""
 
 from __future__ import annotations
 
@@ -408,3 +409,192 @@ def test_bad_arguments_are_refused(tmp_path: Path) -> None:
     assert info["target"] == own
     schedule = info["schedule"]
     assert interval_table(schedule_from_dict(schedule), 10, 0.02, 0.01).rate_mean.shape == (10,)
+
+
+# -- the acceptance check (scripts/surrogate_check.py), tracking, on the tiny id -----------------------------
+def hand_made_ppo_run(folder: Path, model_path: Path) -> Path:
+    """An ``agents.train``-shaped PPO run on the tiny id (untrained: random weights) with ``history_length``
+    1 and VecNormalize statistics far from the identity, so that a run played without its history or its
+    statistics would act otherwise."""
+    import yaml
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    folder.mkdir(parents=True)
+    venv = VecNormalize(
+        DummyVecEnv([lambda: tiny_surrogate(load_model(model_path), history_length=1)]), norm_reward=False
+    )
+    rng = np.random.default_rng(3)
+    size = venv.observation_space.shape
+    venv.obs_rms.mean = rng.normal(0.0, 1.0, size)
+    venv.obs_rms.var = rng.uniform(0.01, 0.1, size)
+    PPO("MlpPolicy", venv, n_steps=16, batch_size=16, seed=0, device="cpu").save(folder / "model.zip")
+    venv.save(str(folder / "vecnormalize.pkl"))
+    config = {
+        "algo": "ppo",
+        "env_id": TINY,
+        "env_kwargs": {"history_length": 1},
+        "hyperparams": {"normalize": True},
+        "seed": 0,
+    }
+    (folder / "config.yml").write_text(yaml.safe_dump(config))
+    venv.close()
+    return folder
+
+
+def test_surrogate_check_tracking_runs_resumes_and_compares_on_the_tiny_id(tmp_path: Path, capsys) -> None:
+    """``scripts/surrogate_check.py --env dipenv/ViscosityTrackingTiny-v0``: both fidelities play the
+    held-out episodes' schedules and targets (seeds outside every split); the rows' actions are the
+    controllers' and the trained run's (its history and statistics); the numbers are the files'; a rerun
+    replays nothing; other settings, bad rows, seeds and models are refused."""
+    import pickle
+
+    from stable_baselines3 import PPO
+
+    from agents.tracking_controllers import AnglePIController
+    from dipenv.actions import action_from_direction
+    from dipenv.tracking import draw_target
+
+    check = script("surrogate_check")
+    model = tmp_path / "tiny_tracking.npz"
+    random_direction_model({**TINY_SETTINGS, "env_id": TINY}).save(model)
+    run = hand_made_ppo_run(tmp_path / "ppo" / "seed0", model)
+    out = tmp_path / "check"
+    rows = ["constant:yz:5", "map_feedforward", "angle_pi:3:1:1", f"ppo:{run}"]
+    argv = ["--out", str(out), "--env", TINY, "--model", str(model), "--episodes", "2", "--realisations", "2",
+            "--samples", "2", "--rows", *rows]  # fmt: skip
+    summary = check.main(argv)
+    assert summary is not None and list(summary["rows"]) == rows and summary["task"] == "tracking"
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["task"] == "tracking" and manifest["target_seed"] == check.TARGET_SEED == 45_000_000
+
+    simulator = gym.make(TINY, progress=False).unwrapped
+    size = simulator.split_sizes["validation"]
+    targets = []
+    for j in range(2):  # the episodes' start states, schedules and targets, in both fidelities
+        target = draw_target(
+            np.random.default_rng(45_000_000 + j),
+            simulator.episode_duration,
+            simulator.target_range,
+            simulator.target_hold_range,
+            simulator.target_ramp_range,
+        )
+        targets.append(target)
+        means = [target.mean(0.02 * k, 0.02 * (k + 1)) for k in range(10)]
+        for label in ("constant_yz_5", "map_feedforward", "angle_pi_3_1_1", "ppo_seed0"):
+            sur = json.loads((out / "surrogate" / label / f"ep{j:02d}.json").read_text())
+            sims = [
+                json.loads((out / "simulator" / label / f"ep{j:02d}_r{r}.json").read_text()) for r in (0, 1)
+            ]
+            for record in (sur, *sims):
+                assert record["index"] == j % size and record["target_seed"] == 45_000_000 + j
+                assert record["schedule_seed"] == check.SCHEDULE_SEED + j
+                assert validate_target(record["target"]) == target
+            for played in (*sur["samples"], *sims):
+                assert not played["failed"] and len(played["eta_r"]) == 10
+                np.testing.assert_allclose(played["target_eta_r"], means, rtol=1e-12)
+                assert all(len(a) == 3 for a in played["action"])
+    # the constant row: one field, Mn_ref 5 along (y + z)/sqrt2, in both fidelities
+    mapping = simulator.mapping
+    expected = np.array(
+        [mapping.action_for(5.0), *action_from_direction((0.0, math.sqrt(0.5), math.sqrt(0.5)))],
+        dtype=np.float32,
+    )
+    constant = json.loads((out / "simulator/constant_yz_5/ep01_r1.json").read_text())
+    constant_sur = json.loads((out / "surrogate/constant_yz_5/ep01.json").read_text())["samples"][1]
+    for played in (constant, constant_sur):
+        assert np.array_equal(np.array(played["action"], dtype=np.float32), np.tile(expected, (10, 1)))
+        np.testing.assert_allclose(played["field_direction"], [[0.0, math.sqrt(0.5), math.sqrt(0.5)]] * 10)
+        np.testing.assert_allclose(played["mason_number"], 5.0)
+    # the angle PI (kp 3, ki 1, Mn* 1) replayed by hand in the simulator: episode 1, realisation 1
+    pi = AnglePIController(3.0, 1.0, 1.0).bind(simulator)
+    obs, _ = simulator.reset(
+        options={"split": "validation", "index": 1 % size, "realisation": 1, "target": targets[1]}
+        | {"schedule": constant["schedule"]}
+    )
+    stored = json.loads((out / "simulator/angle_pi_3_1_1/ep01_r1.json").read_text())
+    for k in range(10):
+        action = pi(obs)
+        obs, _, _, _, info = simulator.step(action)
+        assert [float(a) for a in action] == stored["action"][k] and info["eta_r"] == stored["eta_r"][k]
+    simulator.close()
+    # the trained run: mean action on the observation (history 1) normalised by its statistics, by hand on
+    # the surrogate's first sample of episode 0
+    ppo = PPO.load(str(run / "model.zip"), device="cpu")
+    with open(run / "vecnormalize.pkl", "rb") as handle:
+        normaliser = pickle.load(handle)
+    normaliser.training = False
+    env = tiny_surrogate(load_model(model), history_length=1)
+    spec = json.loads((out / "surrogate/ppo_seed0/ep00.json").read_text())
+    obs, _ = env.reset(
+        seed=check.SURROGATE_SEED,
+        options={"split": "validation", "index": 0, "schedule": spec["schedule"], "target": spec["target"]},
+    )
+    for k in range(10):
+        action = ppo.predict(normaliser.normalize_obs(obs), deterministic=True)[0]
+        obs, _, _, _, info = env.step(action)
+        assert [float(a) for a in action] == spec["samples"][0]["action"][k]
+        assert info["eta_r"] == spec["samples"][0]["eta_r"][k]
+    # the numbers are the files': mean |eta_r - target| per episode and realisation (or sample), averaged
+    errors: dict[str, list[float]] = {"simulator": [], "surrogate": []}
+    for row in rows:
+        label = check.row_label(row)
+        for fidelity in errors:
+            per_episode = []
+            for j in range(2):
+                if fidelity == "simulator":
+                    files = [out / "simulator" / label / f"ep{j:02d}_r{r}.json" for r in (0, 1)]
+                    played = [json.loads(p.read_text()) for p in files]
+                else:
+                    played = json.loads((out / "surrogate" / label / f"ep{j:02d}.json").read_text())[
+                        "samples"
+                    ]
+                per_episode.append(
+                    np.mean([np.mean(np.abs(np.subtract(p["eta_r"], p["target_eta_r"]))) for p in played])
+                )
+            value = summary["rows"][row][f"{fidelity}_mean_abs_error"]
+            assert value == pytest.approx(np.mean(per_episode), rel=1e-12)
+            errors[fidelity].append(value)
+    assert summary["error_order_simulator"] == [
+        rows[k] for k in np.argsort(errors["simulator"], kind="stable")
+    ]
+    from scipy import stats
+
+    tau = stats.kendalltau(errors["simulator"], errors["surrogate"]).statistic
+    assert summary["error_kendall_tau"] == pytest.approx(tau)
+    text = (out / "summary.md").read_text()
+    assert "target seeds 45000000 + j" in text and "Order by mean abs(eta_r - target)" in text
+
+    # resumes: nothing replayed, the same numbers; other settings in the folder refused
+    stamps = {p: p.stat().st_mtime_ns for p in out.rglob("ep*.json")}
+    assert check.main(argv) == summary
+    assert {p: p.stat().st_mtime_ns for p in out.rglob("ep*.json")} == stamps
+    capsys.readouterr()
+    assert "other settings" in refused(capsys, check.main, [*argv, "--target-seed", "46000000"])
+    # refusals before anything is played
+    new = ["--out", str(tmp_path / "never"), "--env", TINY, "--model", str(model), "--episodes", "2"]
+    for extra, words in (
+        (["--target-seed", "4000005"], "validation targets' seeds"),
+        (["--target-seed", str(check.SCHEDULE_SEED + 1)], "check's schedule seeds"),
+        (["--target-seed", str(check.SURROGATE_SEED)], "surrogate's sample seeds"),
+        (["--target-seed", "2001"], "test split's schedule seeds 2000..2015"),
+        (["--schedule-seed", "6000000"], "fresh targets' seeds"),
+        (["--rows", "pulse:2.5:0.5"], "unknown tracking row"),
+        (["--rows", "constant:w:5"], "must be one of"),
+        (["--rows", "angle_pi:3:1"], "three numbers"),
+        (["--rows", f"ppo:{tmp_path}"], "config.yml"),
+    ):
+        assert words in refused(capsys, check.main, [*new, *extra]), extra
+    thickening = ["--model", str(ROOT / "dipenv" / "data" / "surrogate_v1.npz")]
+    assert "fields along y only" in refused(capsys, check.main, [*new[:-4], *thickening])
+    assert "stress-only" in refused(
+        capsys,
+        check.main,
+        ["--out", str(tmp_path / "never"), "--env", "dipenv/ViscosityTrackingStressOnly-v0"],
+    )
+    assert "--target-seed" in refused(
+        capsys,
+        check.main,
+        ["--out", str(tmp_path / "never"), "--env", "dipenv/ThickeningControlTiny-v0", "--target-seed", "1"],
+    )
+    assert not (tmp_path / "never").exists()
