@@ -1180,7 +1180,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 PATH_KEYS = ("runs", "baseline", "controllers", "validation_baseline")
-"""Identity keys that hold paths (compared by the files they name: :func:`agents.folders.compare_paths`)."""
+"""Identity keys that hold paths (compared by the files they name: :func:`agents.folders.compare_paths`;
+``runs`` also by the policies the folders hold, so that a run folder copied elsewhere is the same run)."""
 
 
 def folder_identity(
@@ -1398,7 +1399,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         resume=args.resume,
         overwrite=args.overwrite,
         legacy=legacy_markers(args.out, LEGACY, "agents.evaluate"),
-        compare=compare_paths(PATH_KEYS),
+        compare=compare_paths(PATH_KEYS, content_keys=("runs",)),
     )
     write_command(args.out, "agents.evaluate", argv)
     (args.out / "runs").mkdir(parents=True, exist_ok=True)

@@ -20,6 +20,7 @@ back, naming the file and what is wrong with a bad one.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import math
 import os
@@ -191,11 +192,39 @@ def check_parent(parser: argparse.ArgumentParser, folder: Path, flag: str = "--o
         parser.error(str(error))
 
 
-def compare_paths(path_keys: Sequence[str]) -> Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]]:
+RUN_CONTENT_FILES = ("model.zip", "vecnormalize.pkl", "best_model.zip")
+"""The files that make a trained run what it is (:func:`run_content`): its final model, its normalisation
+statistics and its best model (``eval/``); checkpoints and logs are not part of it."""
+
+
+def run_content(folder: str | Path) -> str | None:
+    """SHA-256 over a run folder's (or a folder of runs') :data:`RUN_CONTENT_FILES`, each with its path
+    relative to ``folder`` (``checkpoints/`` left out), or None when ``folder`` holds none of them: two
+    folders with the same digest hold the same policies, wherever they lie."""
+    root = Path(folder)
+    if not root.is_dir():
+        return None
+    digest = hashlib.sha256()
+    found = False
+    for path in sorted(root.rglob("*")):
+        relative = path.relative_to(root)
+        if path.name not in RUN_CONTENT_FILES or "checkpoints" in relative.parts or not path.is_file():
+            continue
+        found = True
+        digest.update(relative.as_posix().encode() + b"\0")
+        digest.update(hashlib.sha256(path.read_bytes()).digest())
+    return digest.hexdigest() if found else None
+
+
+def compare_paths(
+    path_keys: Sequence[str], content_keys: Sequence[str] = ()
+) -> Callable[[Mapping[str, Any], Mapping[str, Any]], list[str]]:
     """An identity comparison for :func:`claim_out` in which the values of ``path_keys`` (a path, a list of
     paths or None) are equal when they name the same files from the current folder (``runs/x`` and
     ``./runs/x/``, or a relative and an absolute spelling): a rerun from the repository root of another
-    checkout is the same run."""
+    checkout is the same run. The values of ``content_keys`` (trained runs' folders) are also equal when
+    the folders, wherever they lie, hold the same policies (:func:`run_content`): a run copied from a
+    scratch folder into the repository is the same run."""
 
     def resolved(value: Any) -> Any:
         if isinstance(value, str):
@@ -204,10 +233,24 @@ def compare_paths(path_keys: Sequence[str]) -> Callable[[Mapping[str, Any], Mapp
             return [resolved(v) for v in value]
         return value
 
+    def contents(value: Any) -> Any:
+        if isinstance(value, str):
+            return run_content(value) or str(Path(value).resolve())
+        if isinstance(value, list):
+            return [contents(v) for v in value]
+        return value
+
+    def same(key: str, a: Any, b: Any) -> bool:
+        if key not in path_keys:
+            return False
+        if resolved(a) == resolved(b):
+            return True
+        return key in content_keys and contents(a) == contents(b)
+
     def compare(saved: Mapping[str, Any], requested: Mapping[str, Any]) -> list[str]:
         a, b = normalise(saved), normalise(requested)
         keys = sorted(key for key in set(a) | set(b) if a.get(key, _MISSING) != b.get(key, _MISSING))
-        return [key for key in keys if key not in path_keys or resolved(a.get(key)) != resolved(b.get(key))]
+        return [key for key in keys if not same(key, a.get(key), b.get(key))]
 
     return compare
 

@@ -20,6 +20,9 @@
 #                and the v2 PPO (5 seeds, 10^4 coarse simulator steps each), their mean actions, against
 #                every row above -> fresh/evaluation
 #   front        constant fields Mn_ref 2 and 0.3, the ends of the front
+#   learned_front  PPO pretrained on surrogate v1 at energy weights 1 and 0.1 (seeds 0 and 1 of each, fixed
+#                by index on validation before any fresh episode; docs/surrogate.md#the-learned-front-energy-weights)
+#                -> fresh/evaluation_front
 #   others       the other trained rows of the v2 study: SAC (its sampled actions, the policy it
 #                optimises) and PPO on the stress-only id with 4 frames of history
 #                -> fresh/evaluation_sac_sampled, fresh/evaluation_stress_only
@@ -29,7 +32,7 @@
 # Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
 # constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
 # 1 min per episode: constants ~3 h, controllers ~5 h,
-# policies ~11 h, front ~2 h, others ~11 h.
+# policies ~11 h, front ~2 h, learned_front ~4 h, others ~11 h.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-.venv/bin/python}
@@ -39,7 +42,7 @@ ENV=dipenv/ThickeningControl-v2
 V2=results/thickening_control/v2
 F=$V2/fresh
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(constants controllers policies front others summary)
+[ ${#stages[@]} -gt 0 ] || stages=(constants controllers policies front learned_front others summary)
 log() { echo "== $(date -u +%FT%TZ) fresh_evaluation.sh: $*"; }
 controllers=("$F/pulse" "$F/feedforward" "$F/mpc" "$F/pi")
 
@@ -73,6 +76,14 @@ for stage in "${stages[@]}"; do
                 --workers "$W" --out "$F/open_loop"
         done
         ;;
+    learned_front)
+        log "the learned front: PPO on surrogate v1 at w_E 1 and 0.1, seeds 0 and 1"
+        S=$V2/surrogate_pretrain
+        "$PY" -m agents.evaluate "$S/surrogate_ppo_v1_w1/seed0" "$S/surrogate_ppo_v1_w1/seed1" \
+            "$S/surrogate_ppo_v1_w0.1/seed0" "$S/surrogate_ppo_v1_w0.1/seed1" --play-env "$ENV" \
+            --split fresh --episodes "$N" --baseline "$F/open_loop" --controllers "$F/pulse" \
+            --workers "$W" --out "$F/evaluation_front"
+        ;;
     policies)
         log "trained policies: surrogate-pretrained PPO and the v2 PPO"
         "$PY" -m agents.evaluate "$V2/surrogate_pretrain/surrogate_ppo_v1" "$V2/rl/ppo" --play-env "$ENV" \
@@ -90,12 +101,12 @@ for stage in "${stages[@]}"; do
             --workers "$W" --out "$F/evaluation_stress_only"
         ;;
     summary)
-        "$0" policies others  # every episode is stored: this only rewrites the tables
-        "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_sac_sampled" \
+        "$0" policies learned_front others  # every episode is stored: this only rewrites the tables
+        "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_front" "$F/evaluation_sac_sampled" \
             > "$F/evaluation/summary.md"
         ;;
     *)
-        echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies front others summary)" >&2
+        echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies front learned_front others summary)" >&2
         exit 2
         ;;
     esac

@@ -69,3 +69,37 @@ def test_same_play_ignores_locations_only() -> None:
     assert not evaluate.same_play(stored, {**stored, "model_sha256": "2"})
     assert not evaluate.same_play(stored, {**stored, "split": "fresh"})
     assert not evaluate.same_play(None, stored)
+
+
+def test_a_run_copied_elsewhere_is_the_same_run_for_the_folder(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The evaluation folder's manifest names the run folders it was given; a rerun naming a copy of them
+    (a scratch run copied into the repository) is accepted and replays nothing; a copy holding another
+    model is refused."""
+    monkeypatch.chdir(tmp_path)
+    open_loop.main(["--env", ENV, "--out", "open_loop", "--mason", "off,1", "--episodes", "1"])
+    train.main(
+        ["--env", ENV, "--algo", "ppo", "--seeds", "0-0", "--timesteps", "32", "--n-envs", "1"]
+        + ["--out", "scratch/ppo", "--no-progress", "--hyperparams", "n_steps=32", "batch_size=32"]
+        + ["n_epochs=1", "eval_freq=32", "checkpoint_freq=32"]
+    )
+    evaluate.main(["scratch/ppo", "--baseline", "open_loop", "--out", "evaluation"])
+    shutil.copytree("scratch/ppo", "results/ppo", ignore=shutil.ignore_patterns("checkpoints", "tb"))
+    stored = json.loads(_stored(tmp_path).read_text())
+    stored["episodes"][0]["mark"] = 1
+    _stored(tmp_path).write_text(json.dumps(stored))
+    evaluate.main(["results/ppo", "--baseline", "open_loop", "--out", "evaluation"])
+    assert json.loads(_stored(tmp_path).read_text())["episodes"][0].get("mark") == 1  # nothing replayed
+
+    # a copy holding another model is another run: refused
+    shutil.copytree("results/ppo", "other/ppo")
+    model_file = tmp_path / "other" / "ppo" / "seed0" / "model.zip"
+    model = PPO.load(str(model_file), device="cpu")
+    with torch.no_grad():
+        next(model.policy.parameters()).add_(0.5)
+    model.save(str(model_file))
+    with pytest.raises(SystemExit) as exit_info:
+        evaluate.main(["other/ppo", "--baseline", "open_loop", "--out", "evaluation"])
+    assert exit_info.value.code == 2
+    assert "other parameters" in capsys.readouterr().err
