@@ -24,6 +24,10 @@
 #              results/viscosity_tracking/surrogate_ppo (models, statistics, configs, results, eval logs)
 #   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
 #              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
+#   fresh      the final evaluation, run once everything above is settled: each baseline at its point chosen
+#              on validation (read from validation/tuning.csv; replayed on the 8 validation episodes first)
+#              and the 5 PPO seeds, on the first FRESH (default 64) fresh episodes -> results/viscosity_tracking/fresh
+#              (not part of the default stages: the fresh split is held out until it is called by name)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-.venv/bin/python}
@@ -39,6 +43,7 @@ SEEDS=${SEEDS:-0-99}
 EPISODES=${EPISODES:-8}
 STEPS=${STEPS:-300000}
 HYPER=${HYPER:-}
+FRESH=${FRESH:-64}
 SURROGATE_KWARGS=${SURROGATE_KWARGS:-"{\"model\": \"$MODEL\"}"}
 split=(--tune-split validation --tune-episodes "$EPISODES" --split validation --episodes "$EPISODES")
 stages=("$@")
@@ -90,8 +95,30 @@ for stage in "${stages[@]}"; do
         "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" "${split[@]}" \
             --workers "$W" --no-progress --out "$R/validation"
         ;;
+    fresh)
+        for kind in constant map_feedforward angle_pi; do
+            # the point chosen on validation, as --grid items
+            mapfile -t grid < <("$PY" - "$R/validation/tuning.csv" "$kind" <<'PYEOF'
+import csv, json, sys
+rows = [r for r in csv.DictReader(open(sys.argv[1])) if r["controller"] == sys.argv[2] and r["chosen"] == "yes"]
+if len(rows) != 1:
+    sys.exit(f"{sys.argv[1]}: {len(rows)} chosen points for {sys.argv[2]} (tune it first: stage baselines)")
+for name, value in json.loads(rows[0]["params"]).items():
+    print(f"{name}={value}")
+PYEOF
+            )
+            log "fresh: $kind at ${grid[*]}"
+            "$PY" -m agents.tracking --env "$ENV" --controller "$kind" --grid "${grid[@]}" \
+                --tune-split validation --tune-episodes "$EPISODES" --split fresh --episodes "$FRESH" \
+                --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
+        done
+        log "fresh: the surrogate-only PPO"
+        "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" \
+            --tune-split validation --tune-episodes "$EPISODES" --split fresh --episodes "$FRESH" \
+            --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
+        ;;
     *)
-        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate)" >&2
+        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate fresh)" >&2
         exit 2
         ;;
     esac
