@@ -130,7 +130,7 @@ from agents.folders import (
 )
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
-from agents.rollout import make_env, run_episode
+from agents.rollout import make_env, run_episode, statistics_file, trained_policy
 from agents.schedules import (
     ScheduleSet,
     episodes_payload,
@@ -542,7 +542,6 @@ def same_play(stored: Any, wanted: dict[str, Any]) -> bool:
 def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Episodes of one trained run on the given start states (a task; cached in ``payload['path']``)."""
     import torch
-    from stable_baselines3 import PPO, SAC
 
     torch.set_num_threads(1)
     path = Path(payload["path"])
@@ -553,21 +552,12 @@ def evaluate_run(payload: dict[str, Any]) -> dict[str, Any]:
     run = Path(payload["run"])
     config = yaml.safe_load((run / "config.yml").read_text())
     model_file, stats_file = Path(payload["model_file"]), Path(payload["stats_file"])
-    model = (PPO if config["algo"] == "ppo" else SAC).load(str(model_file), device="cpu")
-    normaliser = None
-    if payload.get("normalize", stats_file.exists()):
-        if not stats_file.exists():  # main() refuses this first; a raw observation would be meaningless
-            raise FileNotFoundError(f"{run} was trained with VecNormalize, but {stats_file} is missing")
-        with open(stats_file, "rb") as handle:
-            normaliser = pickle.load(handle)
-        normaliser.training = False
-
-    def policy(obs: np.ndarray) -> np.ndarray:
-        x = normaliser.normalize_obs(obs) if normaliser is not None else obs
-        action, _ = model.predict(x, deterministic=deterministic)
-        return np.asarray(action)
-
-    deterministic = not payload.get("stochastic", False)
+    normalize = payload.get("normalize", stats_file.exists())
+    if normalize and not stats_file.exists():  # main() refuses this first; raw observations are meaningless
+        raise FileNotFoundError(f"{run} was trained with VecNormalize, but {stats_file} is missing")
+    policy = trained_policy(
+        config["algo"], model_file, stats_file if normalize else None, not payload.get("stochastic", False)
+    )
     env_id = payload.get("env_id", config["env_id"])  # --play-env: another env than the training one
     env = make_env(env_id, {**payload.get("env_kwargs", config["env_kwargs"]), "progress": False})
     # The episodes played so far are kept in a partial file beside ``path`` after each one, so an
@@ -1341,7 +1331,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             label = f"{run.parent.name}_{run.name}".replace("/", "_")
             label += ("_best" if args.model == "best" else "") + ("_stochastic" if sampled else "")
             model_file, stats_file = model_files(run, args.model)
-            normalize = bool((configs[run].get("hyperparams") or {}).get("normalize", stats_file.exists()))
+            normalize = statistics_file(configs[run], stats_file) is not None
             if normalize and not stats_file.exists():
                 usage_error(
                     PROG,

@@ -38,6 +38,38 @@ def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
     return gym.make(env_id, **(env_kwargs or {}))
 
 
+def statistics_file(config: dict[str, Any], stats_file: Path) -> Path | None:
+    """The ``VecNormalize`` statistics a trained run's policy is played with: ``stats_file`` when the run's
+    ``config.yml`` (``config``) normalised its observations (a config without the setting: when the file
+    exists), else None."""
+    normalize = bool((config.get("hyperparams") or {}).get("normalize", stats_file.exists()))
+    return stats_file if normalize else None
+
+
+def trained_policy(
+    algo: str, model_file: str | Path, stats_file: str | Path | None, deterministic: bool = True
+) -> Callable[[np.ndarray], np.ndarray]:
+    """A trained SB3 policy (``algo`` ppo or sac) as ``obs -> action``: the observation normalised by the
+    ``VecNormalize`` statistics in ``stats_file`` (frozen; None: raw), then the model's mean action
+    (``deterministic``) or a sample of its policy."""
+    from stable_baselines3 import PPO, SAC
+
+    model = (PPO if algo == "ppo" else SAC).load(str(model_file), device="cpu")
+    normaliser = None
+    if stats_file is not None:
+        import pickle
+
+        with open(stats_file, "rb") as handle:
+            normaliser = pickle.load(handle)
+        normaliser.training = False
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        x = normaliser.normalize_obs(obs) if normaliser is not None else obs
+        return np.asarray(model.predict(x, deterministic=deterministic)[0])
+
+    return policy
+
+
 def record_episodes(path: str | Path) -> list[dict[str, Any]]:
     """The ``episodes`` of a stored point or run record (``agents.open_loop``, ``agents.controllers``,
     ``agents.evaluate``: each with its ``trace``); ``ValueError`` naming the file when it is not JSON or

@@ -37,7 +37,7 @@ from agents.evaluate import file_digest, physics_difference
 from agents.folders import normalise
 from agents.open_loop import read_json, write_json
 from agents.repeats import episode_key, missing, per_state, select
-from agents.rollout import library_key, make_env
+from agents.rollout import library_key, make_env, statistics_file, trained_policy
 from agents.tracking_controllers import (
     CONSTANT_GRID,
     TARGET_LABELS,
@@ -278,11 +278,11 @@ def run_play(run: Path, play_env: str | None, env_id: str, env_kwargs: dict[str,
         )
     target.close()
     reference.close()
-    model_file, stats_file = run / "model.zip", run / "vecnormalize.pkl"
-    normalize = bool((config.get("hyperparams") or {}).get("normalize", stats_file.exists()))
+    model_file = run / "model.zip"
+    stats_file = statistics_file(config, run / "vecnormalize.pkl")
     try:
         (PPO if config["algo"] == "ppo" else SAC).load(str(model_file), device="cpu")
-        if normalize:
+        if stats_file is not None:
             with open(stats_file, "rb") as handle:
                 if not hasattr(pickle.load(handle), "normalize_obs"):
                     raise ValueError("no VecNormalize statistics")
@@ -298,30 +298,19 @@ def run_play(run: Path, play_env: str | None, env_id: str, env_kwargs: dict[str,
         "env_id": played,
         "env_kwargs": kwargs,
         "model_file": str(model_file),
-        "stats_file": str(stats_file) if normalize else None,
+        "stats_file": None if stats_file is None else str(stats_file),
         "model_sha256": file_digest(model_file),
-        "stats_sha256": file_digest(stats_file) if normalize else None,
+        "stats_sha256": None if stats_file is None else file_digest(stats_file),
     }
 
 
 def run_policy(payload: dict[str, Any]) -> Any:
-    """A trained run's mean action on its normalised observation (``deterministic=True``)."""
+    """A trained run's mean action on its normalised observation (``deterministic=True``;
+    :func:`agents.rollout.trained_policy`)."""
     import torch
-    from stable_baselines3 import PPO, SAC
 
     torch.set_num_threads(1)
-    model = (PPO if payload["algo"] == "ppo" else SAC).load(payload["model_file"], device="cpu")
-    normaliser = None
-    if payload["stats_file"] is not None:
-        with open(payload["stats_file"], "rb") as handle:
-            normaliser = pickle.load(handle)
-        normaliser.training = False
-
-    def policy(obs: np.ndarray) -> np.ndarray:
-        x = normaliser.normalize_obs(obs) if normaliser is not None else obs
-        return np.asarray(model.predict(x, deterministic=True)[0])
-
-    return policy
+    return trained_policy(payload["algo"], payload["model_file"], payload["stats_file"])
 
 
 # -- one row's episodes (a task) ---------------------------------------------------------------------------

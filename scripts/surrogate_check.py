@@ -258,15 +258,15 @@ def run_payload(run: Path) -> dict[str, Any]:
     """What :func:`agents.tracking_rows.run_policy` loads of an ``agents.train`` run: its algorithm, model and
     statistics (``vecnormalize.pkl`` when its config normalised, or, without the setting, when the file
     exists: the rule of :func:`agents.tracking_rows.run_play`)."""
+    from agents.rollout import statistics_file
     from agents.tracking_rows import read_run_config
 
     config = read_run_config(run)
-    stats = run / "vecnormalize.pkl"
-    normalize = bool((config.get("hyperparams") or {}).get("normalize", stats.exists()))
+    stats = statistics_file(config, run / "vecnormalize.pkl")
     return {
         "algo": config["algo"],
         "model_file": str(run / "model.zip"),
-        "stats_file": str(stats) if normalize else None,
+        "stats_file": None if stats is None else str(stats),
     }
 
 

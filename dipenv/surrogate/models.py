@@ -459,10 +459,10 @@ class EnsembleModel(SurrogateModel):
         start = np.array([t.rate_start[k] for t in tables])
         mean = np.array([t.rate_mean[k] for t in tables])
         end = np.array([t.rate_end[k] for t in tables])
-        if not self.direction:
-            return mlp_inputs(frames, previous, masons[:, k], start, mean, end)
-        before, now = _directions_at(directions, masons.shape[0], k)
-        return mlp_inputs(frames, previous, masons[:, k], start, mean, end, before, now, direction_block=True)
+        before, now = _directions_at(directions, k) if self.direction else (None, None)
+        return mlp_inputs(
+            frames, previous, masons[:, k], start, mean, end, before, now, direction_block=self.direction
+        )
 
     def rollout(
         self,
@@ -496,22 +496,18 @@ class EnsembleModel(SurrogateModel):
         current = np.repeat(np.asarray(frames, dtype=np.float64), samples, axis=0)
         out = np.empty((n_ep * samples, steps, N_DYNAMIC))
         for k in range(steps):
-            if self.direction:
-                x = mlp_inputs(
-                    current,
-                    before[:, k],
-                    rep_masons[:, k],
-                    start[:, k],
-                    mean_rate[:, k],
-                    end[:, k],
-                    before_dirs[:, k],
-                    rep_dirs[:, k],
-                    direction_block=True,
-                )
-            else:
-                x = mlp_inputs(
-                    current, before[:, k], rep_masons[:, k], start[:, k], mean_rate[:, k], end[:, k]
-                )
+            dir_before, dir_now = (before_dirs[:, k], rep_dirs[:, k]) if self.direction else (None, None)
+            x = mlp_inputs(
+                current,
+                before[:, k],
+                rep_masons[:, k],
+                start[:, k],
+                mean_rate[:, k],
+                end[:, k],
+                dir_before,
+                dir_now,
+                direction_block=self.direction,
+            )
             mean, var = self._forward(x, members)
             change = mean + np.sqrt(var) * rng.standard_normal(mean.shape)
             current = np.clip(current + self.y_mean + self.y_std * change, self.low, self.high)
@@ -540,13 +536,14 @@ def _y_axes(shape: tuple[int, ...]) -> np.ndarray:
     return np.broadcast_to(np.array([0.0, 1.0, 0.0]), (*shape, 3)).copy()
 
 
-def _directions_at(directions: np.ndarray | None, n_ep: int, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The directions (E, 3) of interval ``k - 1`` (``y`` before the first) and of ``k`` of
-    ``directions`` (E, T, 3) (``None``: every field along ``y``)."""
+def _directions_at(directions: np.ndarray | None, k: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The directions (E, 3) of interval ``k - 1`` and of ``k`` of ``directions`` (E, T, 3); ``None``
+    where there is none (before the first interval, or no ``directions``), which
+    :func:`dipenv.surrogate.features.mlp_inputs` reads as ``y``."""
     if directions is None:
-        return _y_axes((n_ep,)), _y_axes((n_ep,))
+        return None, None
     dirs = np.asarray(directions, dtype=np.float64)
-    return (dirs[:, k - 1] if k > 0 else _y_axes((n_ep,))), dirs[:, k]
+    return (dirs[:, k - 1] if k > 0 else None), dirs[:, k]
 
 
 class LambdaModel(SurrogateModel):
