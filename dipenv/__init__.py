@@ -151,9 +151,9 @@ for _env_id, _cls in zip(
 TRACKING_SURROGATE_IDS = ("dipenv/ViscosityTrackingSurrogate-v0",)
 """The surrogate of ``ViscosityTracking-v0`` (issue 44): its spaces, schedules, targets and reward over a
 fitted direction-aware model of the simulator's tracking trajectories
-(docs/surrogate.md#the-tracking-surrogate). No model is shipped yet: ``gym.make`` needs ``model=PATH``.
-Neither in :data:`ENV_IDS` nor in :data:`SURROGATE_IDS`; ``agents.train`` and the agents' commands accept
-it (with ``--env-kwargs '{"model": PATH}'`` until a model is shipped)."""
+(docs/surrogate.md#the-tracking-surrogate); the shipped model ``dipenv/data/tracking_surrogate_v0.npz`` is the
+default (``model=PATH`` runs another). Neither in :data:`ENV_IDS` nor in :data:`SURROGATE_IDS`;
+``agents.train`` and the agents' commands accept it."""
 
 for _env_id in TRACKING_SURROGATE_IDS:
     if _env_id not in registry:

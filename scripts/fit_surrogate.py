@@ -25,7 +25,8 @@ Routes (``docs/surrogate.md``; inference in :mod:`dipenv.surrogate.models`):
 
 **Tracking data** (a data folder of ``dipenv/ViscosityTracking*``, whose episodes hold each interval's field
 direction): the ensemble is fitted with the direction block of :mod:`dipenv.surrogate.features` (the
-traceless ``e e^T - I/3`` of this and the previous interval's direction, 10 more inputs; the model's
+traceless ``e e^T - I/3`` of this and the previous interval's direction and this interval's field
+stress scale, 15 more inputs; the model's
 metadata say ``direction_inputs: true``), and the returns below are the tracking reward's,
 ``-(|eta_r - target| + w_E / Mn_ref)`` with each interval's recorded target. The lambda model knows fields
 along ``y`` only and is refused there; ``--routes`` defaults to ``ensemble``. A folder that mixes episodes

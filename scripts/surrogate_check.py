@@ -36,7 +36,7 @@ simulator sd; a match is 0.67-1.5); the rows' mean returns in each fidelity and 
 alike (Kendall's tau, and the order).
 
 **Tracking** (issue 44; ``--env dipenv/ViscosityTracking-v0``, surrogate ``ViscosityTrackingSurrogate-v0``
-with ``--model``, default ``dipenv/data/tracking_surrogate_v0.npz`` once shipped). Episodes as above, and
+with ``--model``, default: the shipped ``dipenv/data/tracking_surrogate_v0.npz``). Episodes as above, and
 episode ``j`` also follows the target ``dipenv.tracking.draw_target(numpy.random.default_rng(TARGET_SEED +
 j), duration)`` with the env's target parameters; schedule and target go to both fidelities as the reset
 options ``schedule`` and ``target``. :data:`TARGET_SEED` is 45 000 000: refused are target seeds that a fixed
@@ -694,8 +694,9 @@ def check_tracking_arguments(parser: argparse.ArgumentParser, args: argparse.Nam
         args.model = default_tracking_model_path()
         if not args.model.is_file():
             parser.error(
-                f"no tracking surrogate is shipped yet ({args.model}): pass --model, a model fitted on "
-                "ViscosityTracking episodes (docs/surrogate.md#the-tracking-surrogate)"
+                f"the shipped tracking surrogate is missing ({args.model}; reinstall the package): or "
+                "pass --model, a model fitted on ViscosityTracking episodes "
+                "(docs/surrogate.md#the-tracking-surrogate)"
             )
     args.model = args.model.resolve()
     for row in args.rows:

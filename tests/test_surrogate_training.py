@@ -38,7 +38,7 @@ def test_ppo_trains_on_the_surrogate_id(tmp_path) -> None:
 
 def test_ppo_trains_on_the_tracking_surrogate_id(tmp_path) -> None:
     """The tracking surrogate (issue 44) through agents.train, with an untrained direction-aware model named
-    by --env-kwargs (none is shipped yet): the run finishes and validates on the surrogate."""
+    by --env-kwargs (in place of the shipped one): the run finishes and validates on the surrogate."""
     from tests.test_tracking_surrogate import V0_SETTINGS, random_direction_model
 
     model = tmp_path / "model.npz"

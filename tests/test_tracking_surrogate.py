@@ -29,6 +29,7 @@ from dipenv.schedules import schedule_from_dict
 from dipenv.surrogate import EnsembleModel, ViscosityTrackingSurrogateEnv, load_model, surrogate_kwargs
 from dipenv.surrogate.data import load_episodes
 from dipenv.surrogate.features import (
+    DIRECTION_COMPONENTS,
     DIRECTION_INPUT_LABELS,
     MLP_INPUT_LABELS,
     N_DIRECTION,
@@ -37,6 +38,7 @@ from dipenv.surrogate.features import (
     N_MLP_INPUTS,
     direction_features,
     direction_tensor,
+    field_stress_features,
     interval_table,
     mlp_input_labels,
     mlp_inputs,
@@ -93,10 +95,12 @@ def test_direction_block_is_the_traceless_symmetric_tensor() -> None:
 
 
 def test_inputs_carry_the_block_only_when_asked() -> None:
-    """Without the block the inputs are the 22 of before; with it 10 more (previous, then this interval's
-    direction; ``None`` is ``y``). The env's scalar path writes the block's bits as the batched one does."""
-    assert N_DIRECTION_INPUTS == 10 and len(DIRECTION_INPUT_LABELS) == 10
-    assert mlp_input_labels(False) == MLP_INPUT_LABELS and len(mlp_input_labels(True)) == N_MLP_INPUTS + 10
+    """Without the block the inputs are the 22 of before; with it 15 more (previous, then this interval's
+    direction, then this interval's field stress scale; ``None`` is ``y``). The env's scalar path writes
+    the block as the batched one does (the direction bits exactly; the field stress's logs to round-off,
+    ``math.log10`` against ``np.log10``)."""
+    assert N_DIRECTION_INPUTS == 15 and len(DIRECTION_INPUT_LABELS) == 15
+    assert mlp_input_labels(False) == MLP_INPUT_LABELS and len(mlp_input_labels(True)) == N_MLP_INPUTS + 15
     rng = np.random.default_rng(1)
     dynamic = rng.normal(size=(5, N_DYNAMIC))
     before, now = unit_vectors(5, 2), unit_vectors(5, 3)
@@ -107,15 +111,38 @@ def test_inputs_carry_the_block_only_when_asked() -> None:
     assert plain.shape == (5, N_MLP_INPUTS) and with_block.shape == (5, N_MLP_INPUTS + N_DIRECTION_INPUTS)
     assert np.array_equal(with_block[:, :N_MLP_INPUTS], plain)
     assert np.array_equal(with_block[:, N_MLP_INPUTS : N_MLP_INPUTS + 5], direction_features(before))
-    assert np.array_equal(with_block[:, N_MLP_INPUTS + 5 :], direction_features(now))  # also while off
+    assert np.array_equal(with_block[:, N_MLP_INPUTS + 5 : N_MLP_INPUTS + 10], direction_features(now))
+    stress = with_block[:, N_MLP_INPUTS + 10 :]
+    assert np.array_equal(stress, field_stress_features(now, masons, rates[1]))
+    assert np.all(stress[np.isinf(masons)] == 0.0)  # off: no field stress (the direction is still given)
     default = mlp_inputs(dynamic, np.roll(masons, 1), masons, *rates, direction_block=True)
-    assert np.array_equal(default[:, N_MLP_INPUTS:], np.tile(direction_features(np.array(AXES["y"])), (5, 2)))
+    y_block = direction_features(np.array(AXES["y"]))
+    assert np.array_equal(default[:, N_MLP_INPUTS : N_MLP_INPUTS + 10], np.tile(y_block, (5, 2)))
     for row in range(5):  # the old inputs agree to round-off (math.log10 against np.log10), as before
         args = (dynamic[row], float(np.roll(masons, 1)[row]), float(masons[row]), 0.7, 1.1, 2.0)
         np.testing.assert_allclose(mlp_inputs_into(np.empty(N_MLP_INPUTS), *args), plain[row], rtol=1e-15)
         scalar = mlp_inputs_into(np.empty(N_MLP_INPUTS + N_DIRECTION_INPUTS), *args, before[row], now[row])
         np.testing.assert_allclose(scalar, with_block[row], rtol=1e-15)
-        assert np.array_equal(scalar[N_MLP_INPUTS:], with_block[row, N_MLP_INPUTS:])
+        assert np.array_equal(
+            scalar[N_MLP_INPUTS : N_MLP_INPUTS + 10], with_block[row, N_MLP_INPUTS : N_MLP_INPUTS + 10]
+        )
+
+
+def test_field_stress_scale_is_the_dipole_to_viscous_stress_ratio() -> None:
+    """``field_stress_features``: the signed log of ``(e e^T - I/3) / (Mn_ref x rate)``, checked by hand on
+    the shear plane's diagonals (``xy = -+1/2``) and the vorticity axis (``zz = 2/3``, no ``xy``): at
+    ``Mn_ref`` 0.1 and rate 0.5 (``Mn`` 0.05) the compressional diagonal gives ``xy = -10``, i.e.
+    ``-log10 11``; the sign of ``e`` does not matter (quadratic in the field); off gives zeros."""
+    h = np.sqrt(0.5)
+    comp, ext, z = np.array([h, -h, 0.0]), np.array([h, h, 0.0]), np.array(AXES["z"])
+    got = field_stress_features(np.stack([comp, -comp, ext, z]), np.full(4, 0.1), np.full(4, 0.5))
+    xy = DIRECTION_COMPONENTS.index("xy")
+    np.testing.assert_allclose(
+        got[:, xy], [-np.log10(11.0), -np.log10(11.0), np.log10(11.0), 0.0], atol=1e-14
+    )
+    xx, yy = DIRECTION_COMPONENTS.index("xx"), DIRECTION_COMPONENTS.index("yy")
+    np.testing.assert_allclose(got[3, [xx, yy]], -np.log10(1.0 + (1.0 / 3.0) / 0.05), rtol=1e-14)
+    assert np.array_equal(field_stress_features(comp, np.inf, 0.5), np.zeros(5))
 
 
 # -- the old models ------------------------------------------------------------------------------------------
@@ -267,7 +294,10 @@ def test_fit_takes_the_direction_block(tiny_data, tiny_fit, capsys) -> None:
     np.testing.assert_array_equal(
         x[1:, N_MLP_INPUTS : N_MLP_INPUTS + 5], direction_features(e.direction[:-1])
     )
-    np.testing.assert_array_equal(x[:, N_MLP_INPUTS + 5 :], direction_features(e.direction))
+    np.testing.assert_array_equal(x[:, N_MLP_INPUTS + 5 : N_MLP_INPUTS + 10], direction_features(e.direction))
+    np.testing.assert_array_equal(
+        x[:, N_MLP_INPUTS + 10 :], field_stress_features(e.direction, e.mason, e.table.rate_mean)
+    )
     np.testing.assert_array_equal(x[:, :N_MLP_INPUTS], fit.transitions(episodes[:1])[0])
     # the model's batched paths read the directions: another direction, another prediction
     dyn, masons = e.dynamic[None], e.mason[None]
@@ -388,8 +418,8 @@ def test_bad_arguments_are_refused(tmp_path: Path) -> None:
     tiny = TINY_SETTINGS
     with pytest.raises(ValueError, match="fields along y only"):
         gym.make(SURROGATE_ID, model=str(ROOT / "dipenv" / "data" / "surrogate_v1.npz"))
-    with pytest.raises(FileNotFoundError, match="no tracking surrogate is shipped yet"):
-        gym.make(SURROGATE_ID)
+    shipped = gym.make(SURROGATE_ID).unwrapped  # the default: the shipped model, with the direction block
+    assert shipped.model.direction and shipped.model.w[0].shape[1] == N_MLP_INPUTS + N_DIRECTION_INPUTS
     with pytest.raises(ValueError, match="take no eta_cap"):
         tiny_surrogate(random_direction_model(tiny), eta_cap=7.0)
     with pytest.raises(ValueError, match="n_particles=300"):

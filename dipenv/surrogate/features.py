@@ -19,7 +19,9 @@ checks, so that a model is always fed the inputs it was fitted on.
   before it, as its 5 independent components ``(xx, yy, xy, xz, yz)`` (:func:`direction_features`). It is
   given also while the field is off, because the frame's angular g bins are taken relative to the
   direction last asked for then too. It is invariant under ``e -> -e``, as the physics is
-  (dipolophoresis is quadratic in the field), so the inputs need no choice of sign. The block comes after
+  (dipolophoresis is quadratic in the field), so the inputs need no choice of sign. The block ends with
+  this interval's field stress scale, the same tensor over the instantaneous Mason number
+  (:func:`field_stress_features`), signed-logged. The block comes after
   the inputs above (:data:`N_DIRECTION_INPUTS` more, :data:`DIRECTION_INPUT_LABELS`), and only a model
   configured with it is fed it, so that a model fitted without it sees exactly the inputs it was fitted
   on, bit for bit.
@@ -224,7 +226,12 @@ def mlp_inputs_into(
         direction_features_into(
             out, N_MLP_INPUTS, Y_AXIS if previous_direction is None else previous_direction
         )
-        direction_features_into(out, N_MLP_INPUTS + N_DIRECTION, Y_AXIS if direction is None else direction)
+        now = N_MLP_INPUTS + N_DIRECTION
+        direction_features_into(out, now, Y_AXIS if direction is None else direction)
+        scale = 0.0 if math.isinf(mason) else 1.0 / (mason * rate_mean)
+        for k in range(N_DIRECTION):
+            v = out[now + k] * scale
+            out[now + N_DIRECTION + k] = math.copysign(math.log10(1.0 + abs(v)), v)
     return out
 
 
@@ -266,13 +273,35 @@ MLP_INPUT_LABELS = (
 )
 
 
-N_DIRECTION_INPUTS = 2 * N_DIRECTION
-"""Inputs of the direction block (the previous interval's, then this one's)."""
+N_DIRECTION_INPUTS = 3 * N_DIRECTION
+"""Inputs of the direction block: the previous interval's direction, this one's, and this one's field
+stress scale (:func:`field_stress_features`)."""
 
 DIRECTION_INPUT_LABELS = (
     *(f"prev_direction_{c}" for c in DIRECTION_COMPONENTS),
     *(f"direction_{c}" for c in DIRECTION_COMPONENTS),
+    *(f"field_stress_{c}" for c in DIRECTION_COMPONENTS),
 )
+
+
+def field_stress_features(
+    direction: np.ndarray, mason: np.ndarray | float, rate: np.ndarray | float
+) -> np.ndarray:
+    """``(..., 5)``: :func:`signed_log` of ``(e e^T - I/3) / (Mn_ref x rate)``, the direction block scaled
+    by the inverse of the interval's instantaneous Mason number (0 while the field is off).
+
+    The induced-dipole stress of a field scales as ``eps E0^2 (e e^T)`` and the viscous one as ``eta
+    gammadot``, so their ratio is ``(e e^T) / Mn`` (``Mn = Mn_ref x rate``, ``docs/units.md``). With a
+    tilted field its ``xy`` part enters the shear stress directly and drives ``eta_r`` far from its
+    field-free value at strong fields and slow shear: in the tracking data ``eta_r`` is close to
+    ``10 + 7 x`` this ``xy`` part (-95 at -20 on the compressional diagonal, +135 at +15 on the
+    extensional one). An MLP fed ``1/Mn_ref``, ``log rate`` and the direction separately has to form the
+    product itself; given it (in the signed log of the outputs' own scale), the 5-fold cross-validated
+    one-step error of ``eta_r`` improved on every fold (``docs/surrogate.md``, the tracking fit)."""
+    mason = np.asarray(mason, dtype=np.float64)
+    on = np.isfinite(mason)
+    scale = np.where(on, 1.0 / (np.where(on, mason, 1.0) * np.asarray(rate, dtype=np.float64)), 0.0)
+    return signed_log(direction_features(direction) * scale[..., None])
 
 
 def mlp_input_labels(direction: bool) -> tuple[str, ...]:
@@ -315,6 +344,14 @@ def mlp_inputs(
             [
                 np.broadcast_to(direction_features(_or_y(previous_direction)), (*batch, N_DIRECTION)),
                 np.broadcast_to(direction_features(_or_y(direction)), (*batch, N_DIRECTION)),
+                np.broadcast_to(
+                    field_stress_features(
+                        _or_y(direction),
+                        np.broadcast_to(np.asarray(mason, dtype=np.float64), batch),
+                        np.broadcast_to(np.asarray(rate_mean, dtype=np.float64), batch),
+                    ),
+                    (*batch, N_DIRECTION),
+                ),
             ]
             if direction_block
             else []

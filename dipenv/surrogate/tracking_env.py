@@ -44,12 +44,12 @@ from dipenv.tracking import (
 )
 
 DEFAULT_TRACKING_MODEL = "tracking_surrogate_v0.npz"
-"""The tracking model ``dipenv/data/`` will ship once the maintainer has collected the data and fitted it
-(``docs/surrogate.md#the-tracking-surrogate``); until then ``model=`` must name one."""
+"""The tracking model shipped in ``dipenv/data/`` (fitted on 2026-12-07 on 100 ``ViscosityTracking-v0``
+episodes; ``docs/surrogate.md#the-tracking-fit``)."""
 
 
 def default_tracking_model_path() -> Path:
-    """``dipenv/data/`` :data:`DEFAULT_TRACKING_MODEL` (not shipped yet)."""
+    """``dipenv/data/`` :data:`DEFAULT_TRACKING_MODEL`."""
     return Path(__file__).resolve().parent.parent / "data" / DEFAULT_TRACKING_MODEL
 
 
@@ -84,7 +84,7 @@ class ViscosityTrackingSurrogateEnv(ThickeningControlSurrogateEnv):
     ## Arguments
 
     ``model``: a model ``.npz`` fitted on tracking data (``direction_inputs``; default
-    ``dipenv/data/`` :data:`DEFAULT_TRACKING_MODEL`, not shipped yet); the others as
+    ``dipenv/data/`` :data:`DEFAULT_TRACKING_MODEL`, the shipped model); the others as
     ``ViscosityTrackingEnv`` (``eta_cap`` refused; ``n_particles``, ``volume_fraction`` and
     ``control_interval`` must be the model's data's); simulator-only arguments are ignored.
 
@@ -118,8 +118,9 @@ class ViscosityTrackingSurrogateEnv(ThickeningControlSurrogateEnv):
             model = default_tracking_model_path()
             if not model.is_file():
                 raise FileNotFoundError(
-                    f"no tracking surrogate is shipped yet ({model}): pass model=PATH, a model fitted on "
-                    "ViscosityTracking episodes (docs/surrogate.md#the-tracking-surrogate)"
+                    f"the shipped tracking surrogate is missing ({model}; reinstall the package): or pass "
+                    "model=PATH, a model fitted on ViscosityTracking episodes "
+                    "(docs/surrogate.md#the-tracking-surrogate)"
                 )
         loaded = model if isinstance(model, SurrogateModel) else load_model(model)
         if not loaded.direction:
