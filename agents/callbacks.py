@@ -1,15 +1,18 @@
 """Callbacks: log the physics of each step (from the env's ``info``) to the SB3 logger / TensorBoard,
-checkpoints that keep only the newest replay buffer, and a stop on request (SIGTERM) that saves one."""
+checkpoints that keep only the newest replay buffer, validation that writes its files atomically, and a
+stop on request (SIGTERM) that saves one."""
 
 from __future__ import annotations
 
 import math
+import os
+import shutil
 import sys
 import time
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
-from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback
+from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
 from agents.folders import save_atomic
 
@@ -58,6 +61,40 @@ class NewestBufferCheckpointCallback(CheckpointCallback):
             for old in newest.parent.glob(f"{self.name_prefix}_replay_buffer_*_steps.pkl"):
                 if old != newest:
                     old.unlink()
+
+
+class AtomicEvalCallback(EvalCallback):
+    """SB3's ``EvalCallback`` whose two files, ``FOLDER/evaluations.npz`` and ``FOLDER/best_model.zip``,
+    are replaced atomically: SB3 writes them in place, so a process killed while writing left a truncated
+    file under the name that ``agents.evaluate --model best`` loads and a resumed run reads its validation
+    history from. Here SB3 writes each to a hidden temporary beside it (``FOLDER/.evaluations.tmp.npz``,
+    ``FOLDER/.best_model.tmp/best_model.zip``), and once the write has returned it is renamed over the old
+    file (``os.replace``). The temporaries a killed process leaves are removed when training starts here
+    again. ``folder`` stands for SB3's ``log_path`` and ``best_model_save_path`` (one folder for both, as
+    ``agents.train`` uses them)."""
+
+    def __init__(self, eval_env: Any, folder: str | Path, **kwargs: Any) -> None:
+        self.folder = Path(folder)
+        self._log_tmp = self.folder / ".evaluations.tmp.npz"
+        self._best_tmp = self.folder / ".best_model.tmp"
+        super().__init__(
+            eval_env, best_model_save_path=str(self._best_tmp), log_path=str(self.folder), **kwargs
+        )
+        self.log_path = str(self._log_tmp)  # np.savez keeps the .npz suffix
+
+    def _init_callback(self) -> None:
+        self._log_tmp.unlink(missing_ok=True)  # leftovers of a process killed while writing
+        shutil.rmtree(self._best_tmp, ignore_errors=True)
+        super()._init_callback()
+
+    def _on_step(self) -> bool:
+        go_on = super()._on_step()
+        if self._log_tmp.exists():
+            os.replace(self._log_tmp, self.folder / "evaluations.npz")
+        best = self._best_tmp / "best_model.zip"
+        if best.exists():
+            os.replace(best, self.folder / "best_model.zip")
+        return go_on
 
 
 class StopOnSignalCallback(BaseCallback):

@@ -9,7 +9,8 @@ Hyperparameters come from ``agents/hyperparams/<algo>.yml`` (RL Zoo layout, one 
 overridden by ``--hyperparams``. Training runs ``n_envs`` environments in a ``SubprocVecEnv`` (a
 ``DummyVecEnv`` for one, or inside a daemonic worker) under ``VecNormalize``; an ``EvalCallback``
 evaluates the deterministic policy on every validation start state (``start_state="cycle"``) every
-``eval_freq`` steps and keeps the best model; checkpoints (model, normalisation statistics and, for SAC,
+``eval_freq`` steps and keeps the best model (its log and the model each renamed into place once whole,
+:class:`agents.callbacks.AtomicEvalCallback`); checkpoints (model, normalisation statistics and, for SAC,
 the replay buffer) every ``checkpoint_freq`` steps, each written atomically as a set (every file renamed
 into place once whole, the model last), so that a process killed while writing one (SIGKILL, a lost node)
 resumes from the one before; TensorBoard logs; a progress bar.
@@ -545,11 +546,12 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     """Train one seed into ``payload["out"]`` (a task; see the module docstring). Returns ``result.json``."""
     import torch
     from stable_baselines3 import PPO, SAC
-    from stable_baselines3.common.callbacks import CallbackList, EvalCallback
+    from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
     from agents.callbacks import (
+        AtomicEvalCallback,
         NewestBufferCheckpointCallback,
         PhysicsLoggerCallback,
         ProgressLineCallback,
@@ -664,12 +666,11 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
     callbacks = CallbackList(
         [
             checkpointer,
-            EvalCallback(
+            AtomicEvalCallback(
                 eval_env,
+                out / "eval",
                 n_eval_episodes=n_validation,
                 eval_freq=max(eval_freq // n_envs, 1),
-                best_model_save_path=str(out / "eval"),
-                log_path=str(out / "eval"),
                 deterministic=True,
                 verbose=0,
             ),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import math
 import os
 import shutil
 from pathlib import Path
@@ -818,3 +819,77 @@ def test_training_without_a_progress_bar_prints_a_line_per_checkpoint(
     lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("ppo seed 0: ")]
     assert [line.split(",")[0] for line in lines] == ["ppo seed 0: 32/64 steps", "ppo seed 0: 64/64 steps"]
     assert all("steps/s" in line and "min left" in line for line in lines)
+
+
+def test_validation_files_are_replaced_atomically(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Was: SB3's EvalCallback wrote ``eval/evaluations.npz`` and ``eval/best_model.zip`` in place, so a
+    process killed while writing left truncated files under the names ``agents.evaluate --model best``
+    and a resumed run read. Now both are written to hidden temporaries and renamed into place: a write
+    that fails part-way leaves the previous files whole and loadable, and the temporaries a killed process
+    left are removed when training starts again."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.logger import configure
+
+    from agents.callbacks import AtomicEvalCallback
+
+    torch.set_num_threads(1)
+    folder = tmp_path / "eval"
+    env = make_vec_env(lambda: make_env(ENV, {"progress": False}), n_envs=1, seed=0)
+    eval_env = make_vec_env(lambda: make_env(ENV, {"progress": False}), n_envs=1, seed=1)
+    model = PPO(
+        "MlpPolicy", env, n_steps=16, batch_size=16, policy_kwargs={"net_arch": [8]}, device="cpu", seed=0
+    )
+
+    def callback() -> AtomicEvalCallback:
+        cb = AtomicEvalCallback(
+            eval_env, folder, n_eval_episodes=1, eval_freq=1, deterministic=True, verbose=0
+        )
+        cb.init_callback(model)
+        return cb
+
+    model.set_logger(configure(None, []))
+    cb = callback()
+    model.num_timesteps = 16
+    cb.on_step()
+    assert sorted(p.name for p in folder.iterdir()) == [
+        ".best_model.tmp",
+        "best_model.zip",
+        "evaluations.npz",
+    ]
+    assert list((folder / ".best_model.tmp").iterdir()) == []
+    log, best = (folder / "evaluations.npz").read_bytes(), (folder / "best_model.zip").read_bytes()
+    assert list(np.load(folder / "evaluations.npz")["timesteps"]) == [16]
+
+    # a write that dies part-way (a full disk, a kill): the old files stay whole
+    cb.best_mean_reward = -math.inf  # so that this evaluation saves a best model again
+    save = model.save
+
+    def dying_save(path: Any, *args: Any, **kwargs: Any) -> None:
+        Path(str(path) + ".zip").write_bytes(b"partial")
+        raise OSError("no space left on device")
+
+    monkeypatch.setattr(model, "save", dying_save)
+    model.num_timesteps = 32
+    with pytest.raises(OSError, match="no space left"):
+        cb.on_step()
+    monkeypatch.setattr(model, "save", save)
+    assert (folder / "best_model.zip").read_bytes() == best
+    assert (folder / "evaluations.npz").read_bytes() == log  # renamed only after the step, so not yet
+    PPO.load(str(folder / "best_model.zip"), device="cpu")
+
+    # the next start removes the leftovers; training writes the files again
+    assert (folder / ".best_model.tmp" / "best_model.zip").exists() and (
+        folder / ".evaluations.tmp.npz"
+    ).exists()
+    cb = callback()
+    assert sorted(p.name for p in folder.iterdir()) == [
+        ".best_model.tmp",
+        "best_model.zip",
+        "evaluations.npz",
+    ]
+    assert list((folder / ".best_model.tmp").iterdir()) == []
+    model.num_timesteps = 48
+    cb.on_step()
+    assert list(np.load(folder / "evaluations.npz")["timesteps"]) == [48]
