@@ -124,10 +124,12 @@ from agents.folders import (
     legacy_markers,
     owner,
     read_evaluation_log,
+    run_folders,
     save_figure,
     write_command,
     write_text_atomic,
 )
+from agents.folders import read_run_config as folders_read_run_config
 from agents.open_loop import plot_pareto, read_json, rescore, summarise_points, write_json
 from agents.repeats import missing, per_state, realisation_of, select, within_state_sd
 from agents.rollout import make_env, run_episode, statistics_file, trained_policy
@@ -155,19 +157,11 @@ PROG = "python -m agents.evaluate"
 
 
 def read_run_config(run: Path) -> dict[str, Any]:
-    """A run's ``config.yml`` (agents.train), or exit 2 naming the file when it is missing, corrupt or of
-    another shape."""
-    path = run / "config.yml"
+    """A run's ``config.yml`` (:func:`agents.folders.read_run_config`), or exit 2 naming the file."""
     try:
-        config = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
-        usage_error(PROG, f"RUN_DIRS: {path} cannot be read ({type(error).__name__}: {error})")
-    needed = ("env_id", "env_kwargs", "algo", "seed")
-    if not isinstance(config, dict) or any(k not in config for k in needed):
-        usage_error(PROG, f"RUN_DIRS: {path} is not an agents.train config.yml (needs {', '.join(needed)})")
-    if config["algo"] not in ("ppo", "sac") or not isinstance(config["env_kwargs"], dict):
-        usage_error(PROG, f"RUN_DIRS: {path}: algo must be ppo or sac and env_kwargs a mapping")
-    return config
+        return folders_read_run_config(run, "RUN_DIRS")
+    except ValueError as error:
+        usage_error(PROG, str(error))
 
 
 def read_baseline(folder: Path, option: str = "--baseline") -> tuple[dict[str, Any], list[Path]]:
@@ -289,15 +283,12 @@ def find_runs(paths: list[Path], marker: str = "model.zip") -> dict[str, list[Pa
     """Group run folders into policies (see the module docstring); name -> run folders. A run folder is
     one that holds ``marker``: ``model.zip`` (a finished run) or, for ``--model best``,
     ``eval/evaluations.npz`` (a run with a validation, finished or still training)."""
-    depth = len(Path(marker).parts)
     groups: dict[str, list[Path]] = {}
     for path in paths:
-        if (path / marker).exists():
-            key, runs = path.parent, [path]
-        else:
-            key, runs = path, sorted(p.parents[depth - 1] for p in path.glob(f"*/{marker}"))
-        if not runs:
-            usage_error(PROG, f"RUN_DIRS: {path}: no {marker} in it or in its subfolders")
+        try:
+            key, runs = run_folders(path, marker, "RUN_DIRS")
+        except ValueError as error:
+            usage_error(PROG, str(error))
         config = read_run_config(runs[0])
         name = f"{config['algo']} ({key.name or key})"
         groups.setdefault(name, []).extend(r for r in runs if r not in groups.get(name, []))

@@ -14,7 +14,8 @@ command's own files (its ``legacy`` markers, :func:`legacy_markers`), never anot
 
 Files are written atomically (:func:`write_text_atomic`, :func:`save_figure`): a file is either its old
 or its new contents, never a half-written one. :func:`read_evaluation_log` reads a run's validation log
-back, naming the file and what is wrong with a bad one.
+back, naming the file and what is wrong with a bad one; :func:`read_run_config` a run's ``config.yml``, and
+:func:`run_folders` finds the runs an argument names (a run folder, or a folder of them).
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ import tempfile
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
+
+import yaml
 
 from agents.usage import usage_error
 from sim.runs import MANIFEST, Claim, RunFolderError, check_writable_parent, claim, read_manifest
@@ -46,6 +49,8 @@ __all__ = [
     "normalise",
     "owner",
     "read_evaluation_log",
+    "read_run_config",
+    "run_folders",
     "report_folder",
     "save_figure",
     "write_command",
@@ -416,3 +421,38 @@ def report_folder(
         compare=compare_paths(["source"]),
     )
     return out
+
+
+TRAIN_CONFIG_KEYS = ("env_id", "env_kwargs", "algo", "seed")
+"""The keys every ``agents.train`` ``config.yml`` holds that the commands reading runs rely on."""
+
+
+def read_run_config(run: Path, option: str = "RUN_DIRS") -> dict[str, Any]:
+    """Run folder ``run``'s ``config.yml`` (``agents.train``); ``ValueError`` naming ``option`` and the file
+    when it is missing, corrupt or of another shape (the keys :data:`TRAIN_CONFIG_KEYS`, ``algo`` ppo or
+    sac, ``env_kwargs`` a mapping)."""
+    path = run / "config.yml"
+    try:
+        config = yaml.safe_load(path.read_text())
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
+        raise ValueError(f"{option}: {path} cannot be read ({type(error).__name__}: {error})") from None
+    if not isinstance(config, dict) or any(k not in config for k in TRAIN_CONFIG_KEYS):
+        needs = ", ".join(TRAIN_CONFIG_KEYS)
+        raise ValueError(f"{option}: {path} is not an agents.train config.yml (needs {needs})")
+    if config["algo"] not in ("ppo", "sac") or not isinstance(config["env_kwargs"], dict):
+        raise ValueError(f"{option}: {path}: algo must be ppo or sac and env_kwargs a mapping")
+    return config
+
+
+def run_folders(path: Path, marker: str = "model.zip", option: str = "RUN_DIRS") -> tuple[Path, list[Path]]:
+    """The run folders an argument names, and the folder that names them: ``path`` itself when it holds
+    ``marker`` (``model.zip``: a finished run; ``eval/evaluations.npz``: a run with a validation, also one
+    still training), keyed by its parent; otherwise its subfolders that hold it, keyed by ``path``.
+    ``ValueError`` naming ``option`` when there is none."""
+    if (path / marker).exists():
+        return path.parent, [path]
+    depth = len(Path(marker).parts)
+    runs = sorted(p.parents[depth - 1] for p in path.glob(f"*/{marker}"))
+    if not runs:
+        raise ValueError(f"{option} {path}: no {marker} in it or in its subfolders (an agents.train run)")
+    return path, runs

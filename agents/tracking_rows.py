@@ -31,10 +31,10 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from agents.evaluate import file_digest, physics_difference
-from agents.folders import normalise
+from agents.folders import normalise, run_folders
+from agents.folders import read_run_config as folders_read_run_config
 from agents.open_loop import read_json, write_json
 from agents.repeats import episode_key, missing, per_state, select
 from agents.rollout import library_key, make_env, statistics_file, trained_policy
@@ -208,10 +208,7 @@ def find_runs(paths: Sequence[Path]) -> dict[str, tuple[str, list[Path]]]:
     naming ``--run`` when one holds none or two rows would share a label."""
     rows: dict[str, tuple[str, list[Path]]] = {}
     for path in paths:
-        runs = [path] if (path / "model.zip").exists() else sorted(p.parent for p in path.glob("*/model.zip"))
-        if not runs:
-            raise ValueError(f"--run {path}: no model.zip in it or in its subfolders (an agents.train run)")
-        key = path.parent if runs == [path] else path
+        key, runs = run_folders(path, "model.zip", "--run")
         algo = read_run_config(runs[0])["algo"]
         label = f"{algo}_{key.resolve().name}"
         if label in rows:
@@ -221,15 +218,8 @@ def find_runs(paths: Sequence[Path]) -> dict[str, tuple[str, list[Path]]]:
 
 
 def read_run_config(run: Path) -> dict[str, Any]:
-    """A run's ``config.yml``; ``ValueError`` naming it when it is missing or of another shape."""
-    path = run / "config.yml"
-    try:
-        config = yaml.safe_load(path.read_text())
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as error:
-        raise ValueError(f"--run: {path} cannot be read ({type(error).__name__}: {error})") from None
-    if not isinstance(config, dict) or config.get("algo") not in ("ppo", "sac") or "env_id" not in config:
-        raise ValueError(f"--run: {path} is not an agents.train config.yml (algo ppo or sac, env_id)")
-    return config
+    """A run's ``config.yml`` (:func:`agents.folders.read_run_config`); ``ValueError`` naming ``--run``."""
+    return folders_read_run_config(run, "--run")
 
 
 def run_play(run: Path, play_env: str | None, env_id: str, env_kwargs: dict[str, Any]) -> dict[str, Any]:
