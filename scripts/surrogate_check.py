@@ -19,7 +19,8 @@ fixed split of :data:`dipenv.schedules.FIXED_SPLITS` uses. No ``fresh`` or ``tes
 
 **Rows** (``KIND:PARAMS``): ``constant:MN`` (``Mn_ref``, ``off`` for no field), ``feedforward:MN_STAR``,
 ``pulse:RATE_ON:MN_STEADY`` (:mod:`agents.controllers`), ``ppo:RUN_DIR`` (an ``agents.train`` run: its
-``model.zip``, ``vecnormalize.pkl`` when present, and its ``history_length``; mean action). Each row plays
+``model.zip``, ``vecnormalize.pkl`` when its config normalised, and its ``history_length``; mean action,
+:func:`agents.rollout.trained_policy`). Each row plays
 every episode ``--realisations`` times in the simulator (realisations ``0 .. R-1`` of
 :mod:`dipenv.realisations`) and ``--samples`` times in the surrogate (seeds ``SURROGATE_SEED + 1000 j +
 k``), closed loop: the row acts on what each fidelity shows it.
@@ -60,7 +61,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import pickle
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -286,10 +286,9 @@ def row_env_kwargs(row: str) -> dict[str, Any]:
     kind, _, params = row.partition(":")
     if kind != "ppo":
         return {}
-    import yaml
+    from agents.tracking_rows import read_run_config
 
-    config = yaml.safe_load((Path(params) / "config.yml").read_text())
-    history = config.get("env_kwargs", {}).get("history_length", 0)
+    history = read_run_config(Path(params))["env_kwargs"].get("history_length", 0)
     return {"history_length": history} if history else {}
 
 
@@ -312,25 +311,15 @@ def make_policy(row: str, env: Any) -> tuple[Callable[[np.ndarray], np.ndarray],
         rate_on, mason_steady = (float(x) for x in params.split(":"))
         pulse = RatePulseController(rate_on, mason_steady).bind(env)
         return pulse, pulse.reset
-    if kind == "ppo":
+    if kind == "ppo":  # as the tracking rows and agents.evaluate load a run (agents.rollout.trained_policy)
         import torch
-        from stable_baselines3 import PPO
+
+        from agents.rollout import trained_policy
 
         torch.set_num_threads(1)
-        run = Path(params)
-        model = PPO.load(str(run / "model.zip"), device="cpu")
-        normaliser = None
-        if (run / "vecnormalize.pkl").exists():
-            with open(run / "vecnormalize.pkl", "rb") as handle:
-                normaliser = pickle.load(handle)
-            normaliser.training = False
-
-        def policy(obs: np.ndarray) -> np.ndarray:
-            x = normaliser.normalize_obs(obs) if normaliser is not None else obs
-            action, _ = model.predict(x, deterministic=True)
-            return np.asarray(action, dtype=np.float32)
-
-        return policy, (lambda: None)
+        run = run_payload(Path(params))
+        played = trained_policy(run["algo"], run["model_file"], run["stats_file"])
+        return (lambda obs: np.asarray(played(obs), dtype=np.float32)), (lambda: None)
     raise ValueError(f"row must be constant:MN, feedforward:MN, pulse:RATE:MN or ppo:RUN_DIR, got {row!r}")
 
 

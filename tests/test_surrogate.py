@@ -538,3 +538,44 @@ def test_surrogate_check_runs_resumes_and_compares_on_the_tiny_id(tmp_path: Path
         check.main([*argv[:-6], "--samples", "4", "--rows", "constant:0.5"])  # other settings, same folder
     with pytest.raises(ValueError, match="overlap"):
         check.check_seeds(2000, 4)
+
+
+@pytest.mark.parametrize("normalize", [True, False])
+def test_surrogate_check_plays_a_thickening_run_as_the_agents_do(tmp_path: Path, normalize: bool) -> None:
+    """Was: the check's ``ppo:RUN`` row (thickening) loaded the run by its own rule, normalising whenever
+    ``vecnormalize.pkl`` existed, so a run trained without ``normalize`` but holding the file was played on
+    rescaled observations. Now it is :func:`agents.rollout.trained_policy` with the statistics rule of
+    ``agents.evaluate``: the run's config decides. The statistics here are far from the identity, so the
+    two readings act differently."""
+    import yaml
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    check = script("surrogate_check")
+    env = surrogate(TINY_SETTINGS, TINY)
+    venv = VecNormalize(DummyVecEnv([lambda: surrogate(TINY_SETTINGS, TINY)]), norm_reward=False)
+    rng = np.random.default_rng(5)
+    venv.obs_rms.mean = rng.normal(0.0, 1.0, venv.observation_space.shape)
+    venv.obs_rms.var = rng.uniform(0.01, 0.1, venv.observation_space.shape)
+    run = tmp_path / "seed0"
+    run.mkdir()
+    model = PPO("MlpPolicy", venv, n_steps=16, batch_size=16, seed=0, device="cpu")
+    model.save(run / "model.zip")
+    venv.save(str(run / "vecnormalize.pkl"))
+    config = {
+        "algo": "ppo",
+        "env_id": TINY,
+        "env_kwargs": {},
+        "hyperparams": {"normalize": normalize},
+        "seed": 0,
+    }
+    (run / "config.yml").write_text(yaml.safe_dump(config))
+    policy, _ = check.make_policy(f"ppo:{run}", env)
+    obs, _ = env.reset(seed=0)
+    venv.training = False
+    seen = venv.normalize_obs(obs) if normalize else obs
+    expected = model.predict(seen, deterministic=True)[0]
+    other = model.predict(obs if normalize else venv.normalize_obs(obs), deterministic=True)[0]
+    assert not np.allclose(expected, other)  # the test can tell the readings apart
+    got = policy(obs)
+    assert got.dtype == np.float32 and np.allclose(got, expected, atol=1e-6)
