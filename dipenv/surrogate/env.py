@@ -30,6 +30,7 @@ from dipenv.actions import (
 from dipenv.checks import check_episode_arguments
 from dipenv.envs.thickening_control import DEFAULT_MAX_PIECE, thickening_frame_features
 from dipenv.observations import ObservationFeature, observation_bounds
+from dipenv.realisations import REALISATION_SEED
 from dipenv.rewards import (
     DEFAULT_ENERGY_WEIGHT,
     DEFAULT_FAILURE_PENALTY,
@@ -92,17 +93,30 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
     ## Starting State
 
     The dynamic part of a data episode's first frame (a pre-sheared train start state, field off), stored
-    in the model: the train state ``index`` when the data hold it, else one drawn with ``self.np_random``
-    (every start state is a field-free pre-sheared state; they differ by noise). The rate entry is the
-    schedule's first rate.
+    in the model: the train state ``index`` when the data hold it, else one drawn with the episode's
+    generator (below; every start state is a field-free pre-sheared state; they differ by noise). The rate
+    entry is the schedule's first rate.
 
     ## Arguments
 
     ``model``: path of a model ``.npz`` (default: the shipped ``dipenv/data/surrogate_v0.npz``); the
     others as ``ThickeningControlEnv`` (``n_particles`` and ``volume_fraction`` must be the model's data's,
     ``control_interval`` its interval). Simulator-only arguments (:data:`SIMULATOR_ONLY_KWARGS`) are
-    ignored. ``reset`` options: ``split``, ``index``, ``schedule``, ``realisation`` (accepted; a surrogate
-    episode's noise comes from the seed), ``volume_fraction`` (must be the model's).
+    ignored. ``reset`` options: ``split``, ``index``, ``schedule``, ``realisation`` (below),
+    ``volume_fraction`` (must be the model's).
+
+    ## Realisations
+
+    A surrogate episode's noise (the start frame where the data do not hold the train ``index``, the
+    ensemble member and every sampled interval) is drawn from a generator: for realisation 0 (the default)
+    ``self.np_random`` itself, so that ``reset(seed=s)`` gives the episode it gave before the option was
+    honoured, bit for bit; for realisation ``k >= 1``, once the index, schedule and target are set (those of
+    realisation 0), a generator of its own, ``numpy.random.default_rng((REALISATION_SEED, split number,
+    index, k, d))`` with :data:`dipenv.realisations.REALISATION_SEED`, the split numbers of
+    :data:`dipenv.state_library.SPLITS` (train 0, validation 1, test 2, fresh 3) and ``d`` one draw of
+    ``self.np_random`` (so the seed still decides the sample). So realisations ``0 .. R-1`` of one episode
+    at one seed are ``R`` independent samples of the model, as the simulator's are ``R`` chaotic repeats,
+    and every controller that plays realisation ``k`` meets the same start frame, member and draws.
 
     ## Version History
 
@@ -160,8 +174,8 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         check_episode_arguments(episode_steps, history_length, split, start_state, SPLITS)
         if not (math.isfinite(max_piece) and max_piece > 0.0):
             raise ValueError(f"max_piece must be finite and > 0, got {max_piece!r}")
-        if split_sizes is not None:
-            check_split_sizes(split_sizes)
+        # every split's size, fresh's default added where not given (as the simulator env resolves them)
+        sizes = check_split_sizes(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
         self.model_path = None if isinstance(model, SurrogateModel) else Path(model or default_model_path())
         self.model = model if isinstance(model, SurrogateModel) else load_model(self.model_path)
         data = self.model.settings
@@ -185,7 +199,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         self.history_length = history_length
         self.split = split
         self.start_state = start_state
-        self.split_sizes = dict(DEFAULT_SPLIT_SIZES if split_sizes is None else split_sizes)
+        self.split_sizes = sizes
         self.rate_range = tuple(float(x) for x in rate_range)
         self.hold_range = tuple(float(x) for x in hold_range)
         self.ramp_range = tuple(float(x) for x in ramp_range)
@@ -210,6 +224,7 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         self._mason = math.inf
         self._direction: np.ndarray = np.array((0.0, 1.0, 0.0))  # y; a direction-aware model turns it
         self._cycle = 0
+        self._noise = np.random.default_rng(0)  # the episode's generator: reset sets it (Realisations)
         self._needs_reset = True
         self._last_eta = math.nan
 
@@ -323,11 +338,16 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         self._table = interval_table(schedule, self.episode_steps, self.control_interval, self.max_piece)
         self._after_schedule(split, int(index), options)
 
+        self._noise = self.np_random
+        if realisation:  # its own sample of the model (class docstring, Realisations)
+            drawn = int(self.np_random.integers(2**63))
+            entropy = (REALISATION_SEED, SPLITS.index(split), int(index), int(realisation), drawn)
+            self._noise = np.random.default_rng(entropy)
         model = self.model
         matches = np.flatnonzero(model.start_indices == int(index)) if split == "train" else np.empty(0, int)
-        row = int(matches[0]) if matches.size else int(self.np_random.integers(len(model.start_frames)))
+        row = int(matches[0]) if matches.size else int(self._noise.integers(len(model.start_frames)))
         start = model.start_frames[row]
-        model.begin(start, self.np_random)
+        model.begin(start, self._noise)
         self._steps = 0
         self._mason = math.inf
         self._needs_reset = False
@@ -377,10 +397,10 @@ class ThickeningControlSurrogateEnv(gym.Env[np.ndarray, np.ndarray]):
         k = self._steps
         self._interval_started(k)
         if direction is None:
-            dynamic = self.model.step(self._mason, mason, table, k, self.np_random)
+            dynamic = self.model.step(self._mason, mason, table, k, self._noise)
         else:
             previous = self._direction
-            dynamic = self.model.step(self._mason, mason, table, k, self.np_random, previous, direction)
+            dynamic = self.model.step(self._mason, mason, table, k, self._noise, previous, direction)
             self._direction = direction
         self._mason = mason
         self._steps += 1
