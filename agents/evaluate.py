@@ -370,7 +370,10 @@ def physics_difference(
     ``field_direction_action``, whether the action chooses the field's direction (``FieldVector`` ids),
     since such a baseline's constant fields include directions a magnitude policy cannot play. Trained
     runs ignore a ``reward`` entry (the baseline is rescored with their reward); controllers do not (their
-    tuned point depends on it)."""
+    tuned point depends on it). A surrogate env's model is compared by its kind and the digest of its file
+    (``settings()["surrogate"]``), not by the path it was named by (``model=PATH`` and the default name
+    the shipped file alike), and the simulator-only arguments it ignores (``settings()["ignored"]``) are
+    no physics of it."""
 
     def physics(env_name: str, kwargs: dict[str, Any]) -> dict[str, Any]:
         env = make_env(env_name, {**kwargs, "progress": False})
@@ -384,6 +387,10 @@ def physics_difference(
         for name in OBSERVATION_SETTINGS + ACTION_MAP_SETTINGS:
             settings.pop(name, None)
         settings["reward"] = {k: v for k, v in settings["reward"].items() if k != "energy_weight"}
+        settings.pop("ignored", None)
+        surrogate = settings.get("surrogate")
+        if isinstance(surrogate, dict) and surrogate.get("digest"):  # a file: its contents, not its name
+            settings["surrogate"] = {k: v for k, v in surrogate.items() if k != "model"}
         return settings
 
     ours, theirs = physics(env_id, env_kwargs), physics(other_id, other_kwargs)

@@ -24,6 +24,18 @@ Rows, all played on the same episodes of ``--split`` (start state ``k``, rate sc
   start states as ``--env``: checked) or, with ``--play-env ID``, in that env with its default arguments
   (a run trained on a surrogate id played in the simulator; the spaces must be the same).
 
+**The surrogate fidelity.** ``--env dipenv/ViscosityTrackingSurrogate-v0``
+(:data:`dipenv.TRACKING_SURROGATE_IDS`; default model the shipped ``dipenv/data/tracking_surrogate_v0.npz``,
+``--env-kwargs '{"model": PATH}'`` another) plays the same command over the fitted model, at no simulator
+cost: the same start indices, rate schedules and targets (the simulator env's fixed splits), so that
+``scripts/tracking_fidelity.py`` can compare the two folders point by point. Realisation ``k`` of an episode
+is one sample of the model: ``k = 0`` the env's draws at seed 0, ``k >= 1`` a generator of its own per
+``(split, state, k)`` (:class:`dipenv.surrogate.env.ThickeningControlSurrogateEnv`, Realisations), so
+``--realisations R`` averages ``R`` independent samples. Realisation 0 of every state starts from the same
+stored frame and meets the same draws (common random numbers across the states, not independent ones). A
+trained run plays there as in the simulator (its training env, e.g. a run trained on the surrogate; or
+``--play-env``).
+
 ``--split fresh`` needs ``--final-evaluation`` (the fresh split is held out,
 ``docs/thickening_control.md#the-fresh-split``). ``--schedules FILE`` plays the rows on rate schedules of
 your own (:mod:`agents.schedules`; start states of ``--split``, each episode's target the split's target of
@@ -40,9 +52,11 @@ error reduction against the issue's 30% / 15%) and ``traces.png`` (eta_r and the
 episode).
 
 The folder's identity (``manifest.json`` ``params``): the env id and ``--env-kwargs`` (the energy weight too:
-the tuning depends on it), the start-state library key, the tuning split and states, the split and states, the
-digest of ``--schedules``, and one entry per row: a controller's grid (the feed-forward's with the direction
-map's digest), a policy's algorithm, played env and the SHA-256 of each seed's model and statistics. A rerun
+the tuning depends on it), the start-state library key (None on the surrogate, which has no library; its
+``surrogate`` entry instead: the model's kind and the SHA-256 of its file, so that a refitted model at the
+same path is another folder), the tuning split and states, the split and states, the digest of
+``--schedules``, and one entry per row: a controller's grid (the feed-forward's with the direction map's
+digest), a policy's algorithm, played env and the SHA-256 of each seed's model and statistics. A rerun
 continues (finished episodes are reused); one that adds rows (another controller, a trained run) extends the
 folder, and the table then holds every row of the folder; one that changes the env, the episodes or a row
 already there is refused (exit 2, naming what differs) unless ``--overwrite`` deletes the previous run. The
@@ -111,7 +125,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         allow_abbrev=False,
     )
-    parser.add_argument("--env", default="dipenv/ViscosityTracking-v0", help="a ViscosityTracking id")
+    parser.add_argument(
+        "--env", default="dipenv/ViscosityTracking-v0", help="a ViscosityTracking id, or its surrogate's"
+    )
     parser.add_argument("--env-kwargs", default="{}", help="JSON object of env arguments")
     parser.add_argument(
         "--controller", nargs="+", default=[], choices=TRACKING_CONTROLLERS, help="baselines to tune and play"
@@ -143,6 +159,17 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def surrogate_identity(settings: dict[str, Any]) -> dict[str, Any]:
+    """``{"surrogate": {"kind", "digest"}}`` for a surrogate env's ``settings()`` (its model's kind and the
+    SHA-256 of the model file, as ``agents.train`` records them in ``env_settings.surrogate``), ``{}`` for a
+    simulator env (whose identity is unchanged). Not the model's path: ``--env-kwargs`` holds it where
+    given, and the same file elsewhere plays the same episodes."""
+    surrogate = settings.get("surrogate")
+    if not isinstance(surrogate, dict):
+        return {}
+    return {"surrogate": {"kind": surrogate["kind"], "digest": surrogate["digest"]}}
+
+
 def compare_rows(saved: Any, requested: Any) -> list[str]:
     """The identity keys that forbid continuing: any but a row's, and a row's that both hold and that
     differs (a rerun may add rows)."""
@@ -158,7 +185,7 @@ def check_arguments(args: argparse.Namespace) -> None:
     """Exit 2 for arguments that contradict each other (before anything is made)."""
     import dipenv
 
-    ids = tuple(i for i in dipenv.ENV_IDS if "ViscosityTracking" in i)
+    ids = (*(i for i in dipenv.ENV_IDS if "ViscosityTracking" in i), *dipenv.TRACKING_SURROGATE_IDS)
     if args.env not in ids:
         usage_error(PROG, f"--env must be one of {', '.join(ids)}, got {args.env!r}")
     if not args.controller and not args.run:
@@ -222,10 +249,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     except ValueError as error:
         usage_error(PROG, str(error))
     key = library_key(unwrapped)
+    settings = unwrapped.settings()
     identity: dict[str, Any] = {
         "env_id": args.env,
         "env_kwargs": env_kwargs,
         "library_key": key,
+        **surrogate_identity(settings),
         "tune_split": args.tune_split,
         "tune_episodes": counts["--tune-episodes"],
         "split": args.split,
@@ -262,16 +291,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for folder in ("tuning", "points"):
         (args.out / folder).mkdir(parents=True, exist_ok=True)
     progress = not args.no_progress
-    compile_notice(args.scheduler)
-    library = unwrapped.library()
-    if points:
+    if key is not None:  # the simulator's kernels (a surrogate env compiles nothing)
+        compile_notice(args.scheduler)
+    library = unwrapped.library() if key is not None else None  # a surrogate env has none: nothing to shear
+    if points and library is not None:
         library.ensure([args.tune_split], progress=progress, count=counts["--tune-episodes"])
     if schedules is None:
-        library.ensure([args.split], progress=progress, count=counts["--episodes"])
+        if library is not None:
+            library.ensure([args.split], progress=progress, count=counts["--episodes"])
     else:
         write_json(args.out / "schedules.json", schedules.resolved())
-        prepare_states(unwrapped, schedules, counts["--episodes"])
-    settings = unwrapped.settings()
+        if library is not None:
+            prepare_states(unwrapped, schedules, counts["--episodes"])
     env.close()
     scheduled = episodes_payload(schedules)
 
@@ -359,7 +390,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     return write_summary(args.out, identity, args.realisations)
 
 
-__all__ = ["COMMAND", "PROG", "build_parser", "compare_rows", "main"]
+__all__ = ["COMMAND", "PROG", "build_parser", "compare_rows", "main", "surrogate_identity"]
 
 if __name__ == "__main__":
     main()
