@@ -24,6 +24,14 @@
 #              results/viscosity_tracking/surrogate_ppo (models, statistics, configs, results, eval logs)
 #   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
 #              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
+#   fidelity   the baselines' command again on the surrogate (the same grids and validation episodes, and
+#              the 5 PPO seeds in their training env where train has run) -> $R/validation_surrogate, then
+#              scripts/tracking_fidelity.py: every grid point and row in both fidelities, their rank
+#              correlations and whether both tune the same points -> $R/validation_fidelity.md (.json).
+#              No simulator step (about a minute). SAMPLES (default 16) surrogate samples per episode
+#              (--tune-realisations, --realisations): the simulator folder holds one realisation per
+#              episode, whose noise a rank correlation cannot remove; the surrogate's samples are cheap, so
+#              its point means are estimated well enough that the comparison's noise is the simulator's
 #   fresh      the final evaluation, run once everything above is settled: each baseline at its point chosen
 #              on validation (read from validation/tuning.csv; replayed on the 8 validation episodes first)
 #              and the 5 PPO seeds, on the first FRESH (default 64) fresh episodes -> results/viscosity_tracking/fresh
@@ -44,11 +52,18 @@ EPISODES=${EPISODES:-8}
 STEPS=${STEPS:-300000}
 HYPER=${HYPER:-}
 FRESH=${FRESH:-64}
+SAMPLES=${SAMPLES:-16}
 SURROGATE_KWARGS=${SURROGATE_KWARGS:-"{\"model\": \"$MODEL\"}"}
 split=(--tune-split validation --tune-episodes "$EPISODES" --split validation --episodes "$EPISODES")
 stages=("$@")
-[ ${#stages[@]} -gt 0 ] || stages=(data fit baselines train validate)
+[ ${#stages[@]} -gt 0 ] || stages=(data fit baselines train validate fidelity)
 log() { echo "== $(date -u +%FT%TZ) tracking_study.sh: $*"; }
+# the baselines' grids, fixed beforehand (see baselines above): "grids CMD" runs CMD KIND --grid ... for each
+grids() {
+    "$@" constant --grid direction=yz,ext,comp mason_ref=2,5
+    "$@" map_feedforward --grid target=now,next,ahead
+    "$@" angle_pi --grid kp=1,3 ki=0.3,1 mason_star=1
+}
 
 for stage in "${stages[@]}"; do
     case "$stage" in
@@ -72,9 +87,7 @@ for stage in "${stages[@]}"; do
             "$PY" -m agents.tracking --env "$ENV" --controller "$@" "${split[@]}" --workers "$W" --no-progress \
                 --out "$R/validation"
         }
-        one constant --grid direction=yz,ext,comp mason_ref=2,5
-        one map_feedforward --grid target=now,next,ahead
-        one angle_pi --grid kp=1,3 ki=0.3,1 mason_star=1
+        grids one
         ;;
     train)
         log "PPO on the tracking surrogate, 5 seeds"
@@ -94,6 +107,27 @@ for stage in "${stages[@]}"; do
         log "the surrogate-only PPO in the simulator on validation"
         "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" "${split[@]}" \
             --workers "$W" --no-progress --out "$R/validation"
+        ;;
+    fidelity)
+        if [ ! -f "$R/validation/manifest.json" ]; then
+            echo "tracking_study.sh: fidelity compares with $R/validation: run the stage baselines first" >&2
+            exit 2
+        fi
+        surrogate_one() {
+            log "fidelity: baseline $1 on the surrogate's validation episodes, $SAMPLES samples each"
+            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --controller "$@" \
+                "${split[@]}" --tune-realisations "$SAMPLES" --realisations "$SAMPLES" --workers "$W" \
+                --no-progress --out "$R/validation_surrogate"
+        }
+        grids surrogate_one
+        if [ -f "$R/surrogate_ppo/seed0/model.zip" ]; then
+            log "fidelity: the surrogate-only PPO on the surrogate (its training env)"
+            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/surrogate_ppo" \
+                "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$R/validation_surrogate"
+        fi
+        log "fidelity: the comparison"
+        "$PY" scripts/tracking_fidelity.py "$R/validation" "$R/validation_surrogate" \
+            --out "$R/validation_fidelity.md"
         ;;
     fresh)
         for kind in constant map_feedforward angle_pi; do
@@ -118,7 +152,7 @@ PYEOF
             --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
         ;;
     *)
-        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate fresh)" >&2
+        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate fidelity fresh)" >&2
         exit 2
         ;;
     esac
