@@ -110,8 +110,8 @@ def read_folder(folder: Path, argument: str) -> dict[str, Any]:
     ):
         command = data.get("command") if isinstance(data, dict) else None
         raise FidelityError(
-            f"{argument} {folder}: its manifest.json is {command!r}'s, not {COMMAND}'s: not a python -m "
-            "agents.tracking output folder"
+            f"{argument} {folder}: its manifest.json is not {COMMAND}'s (command {command!r}): not a "
+            "python -m agents.tracking output folder"
         )
     params: dict[str, Any] = data["params"]
     return params
