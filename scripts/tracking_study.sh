@@ -25,7 +25,8 @@
 #   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
 #              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
 #   fidelity   the baselines' command again on the surrogate (the same grids and validation episodes, and
-#              the 5 PPO seeds in their training env where train has run) -> $R/validation_surrogate, then
+#              the 5 PPO seeds in their training env where train has run) -> $RUNS/validation_surrogate (its
+#              traces are ~40 MB: its tables, tuning.csv and traces.png are copied to $R/validation_surrogate), then
 #              scripts/tracking_fidelity.py: every grid point and row in both fidelities, their rank
 #              correlations and whether both tune the same points -> $R/validation_fidelity.md (.json).
 #              No simulator step (about a minute). SAMPLES (default 16) surrogate samples per episode
@@ -117,16 +118,19 @@ for stage in "${stages[@]}"; do
             log "fidelity: baseline $1 on the surrogate's validation episodes, $SAMPLES samples each"
             "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --controller "$@" \
                 "${split[@]}" --tune-realisations "$SAMPLES" --realisations "$SAMPLES" --workers "$W" \
-                --no-progress --out "$R/validation_surrogate"
+                --no-progress --out "$RUNS/validation_surrogate"
         }
         grids surrogate_one
         if [ -f "$R/surrogate_ppo/seed0/model.zip" ]; then
             log "fidelity: the surrogate-only PPO on the surrogate (its training env)"
             "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/surrogate_ppo" \
-                "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$R/validation_surrogate"
+                "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$RUNS/validation_surrogate"
         fi
         log "fidelity: the comparison"
-        "$PY" scripts/tracking_fidelity.py "$R/validation" "$R/validation_surrogate" \
+        mkdir -p "$R/validation_surrogate"
+        cp "$RUNS/validation_surrogate"/{command.txt,manifest.json,table.md,results.json,tuning.csv,traces.png} \
+            "$R/validation_surrogate/"
+        "$PY" scripts/tracking_fidelity.py "$R/validation" "$RUNS/validation_surrogate" \
             --out "$R/validation_fidelity.md"
         ;;
     fresh)
