@@ -194,19 +194,11 @@ def test_surrogate_realisations_are_independent_samples_and_realisation_0_is_unc
     def episode(realisation: int, index: int = 1) -> dict[str, Any]:
         return play_episode(env, controller, "validation", index, realisation)
 
-    def plain(seed: int, options: dict[str, Any]) -> list[float]:
-        obs, _ = env.reset(seed=seed, options=options)
-        controller.reset()
-        out, done = [], False
-        while not done:
-            obs, _, terminated, truncated, info = env.step(controller(obs))
-            out.append(info["eta_r"])
-            done = terminated or truncated
-        return out
-
     # realisation 0 given or not (play_episode leaves it out) is the env's draws at the seed, as before
     # (the bit identity of a whole surrogate episode: tests/test_surrogate.py, tests/surrogate_reference.py)
-    assert episode(0)["eta_r"] == plain(0, {"split": "validation", "index": 1, "realisation": 0})
+    assert episode(0)["eta_r"] == eta_trace(
+        env, controller, 0, {"split": "validation", "index": 1, "realisation": 0}
+    )
     samples = [episode(k)["eta_r"] for k in range(3)]
     assert samples[0] != samples[1] != samples[2] != samples[0]
     assert episode(2)["eta_r"] == samples[2]  # reproducible
@@ -223,7 +215,12 @@ def test_surrogate_realisations_are_independent_samples_and_realisation_0_is_unc
 
 def episode_at(env: Any, controller: Any, seed: int) -> list[float]:
     """eta_r of validation state 1, realisation 1, at ``seed`` under ``controller``."""
-    obs, _ = env.reset(seed=seed, options={"split": "validation", "index": 1, "realisation": 1})
+    return eta_trace(env, controller, seed, {"split": "validation", "index": 1, "realisation": 1})
+
+
+def eta_trace(env: Any, controller: Any, seed: int, options: dict[str, Any]) -> list[float]:
+    """eta_r of one episode reset with ``seed`` and ``options`` under ``controller`` (reset first)."""
+    obs, _ = env.reset(seed=seed, options=options)
     controller.reset()
     out, done = [], False
     while not done:
