@@ -71,10 +71,19 @@ class AtomicEvalCallback(EvalCallback):
     ``FOLDER/.best_model.tmp/best_model.zip``), and once the write has returned it is renamed over the old
     file (``os.replace``). The temporaries a killed process leaves are removed when training starts here
     again. ``folder`` stands for SB3's ``log_path`` and ``best_model_save_path`` (one folder for both, as
-    ``agents.train`` uses them)."""
+    ``agents.train`` uses them).
 
-    def __init__(self, eval_env: Any, folder: str | Path, **kwargs: Any) -> None:
+    ``seed``: every validation pass starts by seeding the validation envs with it (``VecEnv.seed``), so a
+    run repeats its validation log and its best model. Without it (SB3's behaviour) the validation env is
+    seeded from the OS's entropy at its first reset, so a stochastic env (the surrogates) gave another log
+    at every run of the same command. (The passes do not meet identical draws: a ``start_state="cycle"``
+    env's cycle moves on at the vector env's automatic reset after a pass, so the next pass plays the
+    states in a rotated order against the same draws.)
+    """
+
+    def __init__(self, eval_env: Any, folder: str | Path, seed: int | None = None, **kwargs: Any) -> None:
         self.folder = Path(folder)
+        self.seed = seed
         self._log_tmp = self.folder / ".evaluations.tmp.npz"
         self._best_tmp = self.folder / ".best_model.tmp"
         super().__init__(
@@ -88,6 +97,8 @@ class AtomicEvalCallback(EvalCallback):
         super()._init_callback()
 
     def _on_step(self) -> bool:
+        if self.seed is not None and self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            self.eval_env.seed(self.seed)  # this pass's first reset (SB3's evaluate_policy resets first)
         go_on = super()._on_step()
         if self._log_tmp.exists():
             os.replace(self._log_tmp, self.folder / "evaluations.npz")

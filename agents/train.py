@@ -147,6 +147,11 @@ class HyperparameterError(ValueError):
     ``--hyperparams``)."""
 
 
+EVAL_SEED_OFFSET = 10_000
+"""The validation envs of a run of seed ``s`` are seeded ``s + EVAL_SEED_OFFSET`` at every validation pass
+(:class:`agents.callbacks.AtomicEvalCallback`), apart from its training envs' ``s .. s + n_envs - 1``."""
+
+
 def _number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
@@ -669,6 +674,7 @@ def train_run(payload: dict[str, Any]) -> dict[str, Any]:
             AtomicEvalCallback(
                 eval_env,
                 out / "eval",
+                seed=seed + EVAL_SEED_OFFSET,
                 n_eval_episodes=n_validation,
                 eval_freq=max(eval_freq // n_envs, 1),
                 deterministic=True,

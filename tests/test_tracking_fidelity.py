@@ -509,3 +509,37 @@ def test_fidelity_on_a_real_surrogate_folder(made: Path, tmp_path: Path) -> None
     assert result["surrogate_model"]["kind"] == "ensemble" and not math.isnan(
         result["tuning"][0]["surrogate"]["return"]
     )
+
+
+def test_validation_passes_are_seeded_so_a_run_repeats_its_log(tmp_path: Path) -> None:
+    """Was: SB3's EvalCallback never seeded the validation env, so on a stochastic env (a surrogate) each
+    run of the same command wrote another validation log and could keep another best model (seed 0 of the
+    tracking PPO validated at -207.1 at step 50000 in one run and -219.2 in a rerun whose training was
+    identical). Now every pass is seeded: two callbacks give the same log, pass for pass; unseeded, two
+    callbacks of the same policy give different logs (so the test can tell)."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from agents.callbacks import AtomicEvalCallback
+
+    torch.set_num_threads(1)
+    surrogate_model = random_direction_model(TINY_SETTINGS)
+
+    def venv() -> DummyVecEnv:
+        return DummyVecEnv([lambda: tiny_surrogate(surrogate_model, split="validation", start_state="cycle")])
+
+    model = PPO("MlpPolicy", venv(), n_steps=16, batch_size=16, policy_kwargs={"net_arch": [8]}, seed=0)
+    model.set_logger(configure(None, []))
+
+    def passes(seed: int | None, folder: Path) -> list[list[float]]:
+        cb = AtomicEvalCallback(venv(), folder, seed=seed, n_eval_episodes=2, eval_freq=1, verbose=0)
+        cb.init_callback(model)
+        for _ in range(2):
+            cb.on_step()
+        return [list(r) for r in cb.evaluations_results]
+
+    seeded = passes(10_000, tmp_path / "a")
+    assert passes(10_000, tmp_path / "b") == seeded
+    assert passes(None, tmp_path / "c") != passes(None, tmp_path / "d")
