@@ -52,6 +52,12 @@ from agents.controllers import observation_index
 from dipenv.actions import action_from_direction
 
 DIRECTION_MAP_ROOT = Path(__file__).resolve().parents[1] / "results" / "direction_map"
+
+MAP_SEEDS = (1,)
+"""The map's seeds the feed-forward reads: seed 1, the whole map when the tracking baselines were tuned
+(2026-12-07). Seeds 2 and 3 arrive later (``scripts/direction_map.sh``); read by default, they would change
+the feed-forward, and the map digest in ``agents.tracking``'s folder identity, between its tuning on
+validation and its fresh evaluation."""
 """The committed direction map: ``phi<phi>_<direction>/<point>/result.json`` (made by
 ``scripts/direction_map.sh``)."""
 
@@ -104,12 +110,15 @@ class MapBranch:
         return float(np.interp(math.log(mason), logs, self.eta))
 
 
-def load_direction_map(root: str | Path | None = None, phi: float = 0.45) -> dict[str, MapBranch]:
+def load_direction_map(
+    root: str | Path | None = None, phi: float = 0.45, seeds: tuple[int, ...] | None = MAP_SEEDS
+) -> dict[str, MapBranch]:
     """The finished points of the direction map at ``phi`` by direction (``ValueError`` if there are none).
 
     Reads ``root/phi<phi>_<direction>/*/result.json`` (default :data:`DIRECTION_MAP_ROOT`): each point's
-    ``mason_number``, ``relative_viscosity``, ``field_direction`` and ``seed``; seeds of one (direction, Mn)
-    are averaged, as ``scripts/direction_map_table.py`` does for ``results/direction_map/table.md``."""
+    ``mason_number``, ``relative_viscosity``, ``field_direction`` and ``seed``, of the ``seeds`` (default
+    :data:`MAP_SEEDS`; None: every seed); seeds of one (direction, Mn) are averaged, as
+    ``scripts/direction_map_table.py`` does for ``results/direction_map/table.md``."""
     folder = DIRECTION_MAP_ROOT if root is None else Path(root)
     if not folder.is_dir():
         raise ValueError(
@@ -125,6 +134,8 @@ def load_direction_map(root: str | Path | None = None, phi: float = 0.45) -> dic
         directions = set()
         for result in sorted(sub.glob("*/result.json")):
             data = json.loads(result.read_text())
+            if seeds is not None and int(data["seed"]) not in seeds:
+                continue
             points[float(data["mason_number"])].append(float(data["relative_viscosity"]))
             e = np.asarray(data["field_direction"], dtype=float)
             directions.add(tuple(float(x) for x in np.round(e / np.linalg.norm(e), 12)))
@@ -528,6 +539,7 @@ __all__ = [
     "AnglePIController",
     "ConstantFieldController",
     "MapBranch",
+    "MAP_SEEDS",
     "MapFeedForwardController",
     "load_direction_map",
     "make_tracking_controller",

@@ -383,6 +383,28 @@ def test_direction_map_is_read_from_the_committed_points() -> None:
         load_direction_map("/nonexistent/direction_map")
 
 
+def test_the_feedforward_map_stays_at_seed_1_when_more_seeds_arrive(tmp_path: Path) -> None:
+    """The map's seeds 2 and 3 arrive after the tracking baselines were tuned: the feed-forward keeps
+    reading seed 1 (MAP_SEEDS), so neither it nor agents.tracking's map digest moves under a tuned folder.
+    A copy of the committed phi = 0.45 y branch plus a seed-2 point far off: the default branch is the
+    committed one; ``seeds=None`` averages it in."""
+    import shutil
+
+    source = Path(__file__).resolve().parents[1] / "results" / "direction_map" / "phi0.45_y"
+    shutil.copytree(source, tmp_path / "phi0.45_y")
+    before = load_direction_map(tmp_path)["y"]
+    point = next(p for p in sorted((tmp_path / "phi0.45_y").iterdir()) if "Mn0.5_" in p.name)
+    data = json.loads((point / "result.json").read_text())
+    fake = tmp_path / "phi0.45_y" / point.name.replace("seed1", "seed2")
+    fake.mkdir()
+    (fake / "result.json").write_text(json.dumps({**data, "seed": 2, "relative_viscosity": 100.0}))
+    assert load_direction_map(tmp_path)["y"] == before
+    assert before.eta_at(0.5) == pytest.approx(7.78, abs=0.005)
+    assert load_direction_map(tmp_path, seeds=None)["y"].eta_at(0.5) == pytest.approx(
+        (7.78 + 100.0) / 2, abs=0.005
+    )
+
+
 def test_feedforward_picks_y_for_low_targets_and_z_for_high_ones(tiny) -> None:
     env: ViscosityTrackingEnv = tiny.unwrapped
     controller = MapFeedForwardController().bind(tiny)
