@@ -32,10 +32,16 @@ Policy = Callable[[np.ndarray], np.ndarray]
 
 
 def make_env(env_id: str, env_kwargs: dict[str, Any] | None = None) -> gym.Env:
-    """``gym.make(env_id, **env_kwargs)`` after registering the dipenv ids (picklable with a partial)."""
+    """``gym.make(env_id, **env_kwargs)`` after registering the dipenv ids (picklable with a partial).
+    The argument ``residual`` is no env's: it wraps the env so that its actions are corrections to a
+    controller's (:mod:`agents.residual`)."""
     import dipenv  # noqa: F401  (registers the ids)
+    from agents.residual import RESIDUAL_KEY, residual_env
 
-    return gym.make(env_id, **(env_kwargs or {}))
+    kwargs = dict(env_kwargs or {})
+    residual = kwargs.pop(RESIDUAL_KEY, None)
+    env = gym.make(env_id, **kwargs)
+    return env if residual is None else residual_env(env, residual)
 
 
 def statistics_file(config: dict[str, Any], stats_file: Path) -> Path | None:

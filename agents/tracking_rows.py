@@ -37,6 +37,7 @@ from agents.folders import normalise, run_folders
 from agents.folders import read_run_config as folders_read_run_config
 from agents.open_loop import read_json, write_json
 from agents.repeats import episode_key, missing, per_state, select
+from agents.residual import RESIDUAL_KEY
 from agents.rollout import library_key, make_env, statistics_file, trained_policy
 from agents.tracking_controllers import (
     CONSTANT_GRID,
@@ -231,6 +232,8 @@ def run_play(run: Path, play_env: str | None, env_id: str, env_kwargs: dict[str,
     config = read_run_config(run)
     played = play_env or config["env_id"]
     kwargs = {} if play_env else dict(config.get("env_kwargs") or {})
+    if play_env and RESIDUAL_KEY in (config.get("env_kwargs") or {}):  # the controller is part of the policy
+        kwargs[RESIDUAL_KEY] = config["env_kwargs"][RESIDUAL_KEY]
     if "ViscosityTracking" not in played:
         where = f"--play-env {play_env}" if play_env else f"--run {run}: trained on {played}, which"
         raise ValueError(f"{where} is no viscosity-tracking env (its episodes have no target)")
