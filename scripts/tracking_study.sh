@@ -22,6 +22,9 @@
 #   train      PPO, 5 seeds x 3e5 steps on the tracking surrogate (no simulator step), the settings that
 #              transferred on the thickening task -> $RUNS/surrogate_ppo, copied to
 #              results/viscosity_tracking/surrogate_ppo (models, statistics, configs, results, eval logs)
+#   train_residual  PPO as a residual on the angle PI (kp 3, ki 1; correction scale 0.5, log_std_init -1),
+#              5 seeds x 3e5 steps on the surrogate -> $RUNS/residual_ppo, copied to $R/residual_ppo (not a
+#              default stage yet: chosen on one seed of the surrogate's validation passes, 2026-12-07)
 #   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
 #              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
 #   fidelity   the baselines' command again on the surrogate (the same grids and validation episodes, and
@@ -104,6 +107,25 @@ for stage in "${stages[@]}"; do
             cp "$src/eval/evaluations.npz" "$dst/eval/"
         done
         ;;
+    train_residual)
+        # PPO as a residual on the validation-tuned angle PI (agents.residual; docs/direction.md): chosen on the
+        # surrogate's validation passes (seed 0: -66 against the PI alone's -84.5 with log_std_init -1)
+        log "PPO as a residual on the angle PI, on the tracking surrogate, 5 seeds"
+        residual='{"controller": "angle_pi", "params": {"kp": 3, "ki": 1}, "scale": 0.5}'
+        "$PY" -m agents.train --env "$SURROGATE" --algo ppo --seeds 0-4 --timesteps "$STEPS" --workers "$W" \
+            --no-progress --env-kwargs "{\"model\": \"$MODEL\", \"residual\": $residual}" \
+            --hyperparams 'policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0}' \
+            --out "$RUNS/residual_ppo" $HYPER
+        mkdir -p "$R/residual_ppo"
+        cp "$RUNS/residual_ppo/manifest.json" "$R/residual_ppo/"
+        for seed in 0 1 2 3 4; do
+            src=$RUNS/residual_ppo/seed$seed
+            dst=$R/residual_ppo/seed$seed
+            mkdir -p "$dst/eval"
+            cp "$src"/{model.zip,vecnormalize.pkl,config.yml,manifest.json,result.json,command.txt} "$dst/"
+            cp "$src/eval/evaluations.npz" "$dst/eval/"
+        done
+        ;;
     validate)
         log "the surrogate-only PPO in the simulator on validation"
         "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" "${split[@]}" \
@@ -156,7 +178,7 @@ PYEOF
             --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
         ;;
     *)
-        echo "tracking_study.sh: unknown stage $stage (data fit baselines train validate fidelity fresh)" >&2
+        echo "tracking_study.sh: unknown stage $stage (data fit baselines train train_residual validate fidelity fresh)" >&2
         exit 2
         ;;
     esac
