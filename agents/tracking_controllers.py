@@ -52,14 +52,14 @@ from agents.controllers import observation_index
 from dipenv.actions import action_from_direction
 
 DIRECTION_MAP_ROOT = Path(__file__).resolve().parents[1] / "results" / "direction_map"
+"""The committed direction map: ``phi<phi>_<direction>/<point>/result.json`` (made by
+``scripts/direction_map.sh``)."""
 
 MAP_SEEDS = (1,)
 """The map's seeds the feed-forward reads: seed 1, the whole map when the tracking baselines were tuned
 (2026-12-07). Seeds 2 and 3 arrive later (``scripts/direction_map.sh``); read by default, they would change
 the feed-forward, and the map digest in ``agents.tracking``'s folder identity, between its tuning on
 validation and its fresh evaluation."""
-"""The committed direction map: ``phi<phi>_<direction>/<point>/result.json`` (made by
-``scripts/direction_map.sh``)."""
 
 NO_FIELD_ETA = {0.45: 10.0}
 """eta_r without a field by volume fraction: 10.0 at phi = 0.45 (N = 500, strains 20-100, the box-size study;
