@@ -40,7 +40,7 @@ import math
 import sys
 import warnings
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -49,7 +49,9 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from agents.folders import write_text_atomic  # noqa: E402
 from agents.repeats import per_state  # noqa: E402
+from agents.usage import usage_error  # noqa: E402
 
 PROG = "scripts/tracking_fidelity.py"
 COMMAND = "agents.tracking"
@@ -80,11 +82,6 @@ MIN_POINTS = 3
 
 class FidelityError(ValueError):
     """Two folders that cannot be compared; the message names the argument."""
-
-
-def refuse(message: str) -> NoReturn:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    raise SystemExit(2)
 
 
 def read_json(path: Path, argument: str) -> Any:
@@ -441,21 +438,25 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     args = parser.parse_args(argv)
     for argument, folder in (("SIM_DIR", args.sim_dir), ("SUR_DIR", args.sur_dir)):
         if not folder.is_dir():
-            refuse(f"{argument} {folder}: no such folder (an agents.tracking output folder)")
+            usage_error(PROG, f"{argument} {folder}: no such folder (an agents.tracking output folder)")
     if args.sim_dir.resolve() == args.sur_dir.resolve():
-        refuse(f"SUR_DIR {args.sur_dir} is SIM_DIR: give the simulator's folder and the surrogate's")
+        usage_error(
+            PROG, f"SUR_DIR {args.sur_dir} is SIM_DIR: give the simulator's folder and the surrogate's"
+        )
     if args.out is not None and args.out.suffix != ".md":
-        refuse(f"--out {args.out}: a Markdown file name (FILE.md; the numbers go to FILE.json beside it)")
+        usage_error(
+            PROG, f"--out {args.out}: a Markdown file name (FILE.md; the numbers go to FILE.json beside it)"
+        )
     try:
         result = compare(args.sim_dir, args.sur_dir)
     except FidelityError as error:
-        refuse(str(error))
+        usage_error(PROG, str(error))
     table = markdown(result)
     print(table, end="")
     if args.out is not None:
         args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(table)
-        args.out.with_suffix(".json").write_text(json.dumps(_json_ready(result), indent=1) + "\n")
+        write_text_atomic(args.out, table)
+        write_text_atomic(args.out.with_suffix(".json"), json.dumps(_json_ready(result), indent=1) + "\n")
     return result
 
 
