@@ -311,14 +311,10 @@ def make_policy(row: str, env: Any) -> tuple[Callable[[np.ndarray], np.ndarray],
         rate_on, mason_steady = (float(x) for x in params.split(":"))
         pulse = RatePulseController(rate_on, mason_steady).bind(env)
         return pulse, pulse.reset
-    if kind == "ppo":  # as the tracking rows and agents.evaluate load a run (agents.rollout.trained_policy)
-        import torch
+    if kind == "ppo":  # loaded as the tracking rows load a run (agents.rollout.trained_policy)
+        from agents.tracking_rows import run_policy
 
-        from agents.rollout import trained_policy
-
-        torch.set_num_threads(1)
-        run = run_payload(Path(params))
-        played = trained_policy(run["algo"], run["model_file"], run["stats_file"])
+        played = run_policy(run_payload(Path(params)))
         return (lambda obs: np.asarray(played(obs), dtype=np.float32)), (lambda: None)
     raise ValueError(f"row must be constant:MN, feedforward:MN, pulse:RATE:MN or ppo:RUN_DIR, got {row!r}")
 
