@@ -69,6 +69,19 @@ grids() {
     "$@" angle_pi --grid kp=1,3 ki=0.3,1 mason_star=1
 }
 
+# copy the 5 seeds of $RUNS/NAME to $R/NAME: what playing and judging them needs (models, statistics,
+# configs, results, validation logs), not their checkpoints and TensorBoard logs
+keep_runs() {
+    mkdir -p "$R/$1"
+    cp "$RUNS/$1/manifest.json" "$R/$1/"
+    for seed in 0 1 2 3 4; do
+        mkdir -p "$R/$1/seed$seed/eval"
+        cp "$RUNS/$1/seed$seed"/{model.zip,vecnormalize.pkl,config.yml,manifest.json,result.json,command.txt} \
+            "$R/$1/seed$seed/"
+        cp "$RUNS/$1/seed$seed/eval/evaluations.npz" "$R/$1/seed$seed/eval/"
+    done
+}
+
 for stage in "${stages[@]}"; do
     case "$stage" in
     data)
@@ -97,15 +110,7 @@ for stage in "${stages[@]}"; do
         log "PPO on the tracking surrogate, 5 seeds"
         "$PY" -m agents.train --env "$SURROGATE" --algo ppo --seeds 0-4 --timesteps "$STEPS" --workers "$W" \
             --no-progress --env-kwargs "$SURROGATE_KWARGS" --out "$RUNS/surrogate_ppo" $HYPER
-        mkdir -p "$R/surrogate_ppo"
-        cp "$RUNS/surrogate_ppo/manifest.json" "$R/surrogate_ppo/"
-        for seed in 0 1 2 3 4; do
-            src=$RUNS/surrogate_ppo/seed$seed
-            dst=$R/surrogate_ppo/seed$seed
-            mkdir -p "$dst/eval"
-            cp "$src"/{model.zip,vecnormalize.pkl,config.yml,manifest.json,result.json,command.txt} "$dst/"
-            cp "$src/eval/evaluations.npz" "$dst/eval/"
-        done
+        keep_runs surrogate_ppo
         ;;
     train_residual)
         # PPO as a residual on the validation-tuned angle PI (agents.residual; docs/direction.md): chosen on the
@@ -116,15 +121,7 @@ for stage in "${stages[@]}"; do
             --no-progress --env-kwargs "{\"model\": \"$MODEL\", \"residual\": $residual}" \
             --hyperparams 'policy_kwargs={"net_arch": [64, 64], "log_std_init": -1.0}' \
             --out "$RUNS/residual_ppo" $HYPER
-        mkdir -p "$R/residual_ppo"
-        cp "$RUNS/residual_ppo/manifest.json" "$R/residual_ppo/"
-        for seed in 0 1 2 3 4; do
-            src=$RUNS/residual_ppo/seed$seed
-            dst=$R/residual_ppo/seed$seed
-            mkdir -p "$dst/eval"
-            cp "$src"/{model.zip,vecnormalize.pkl,config.yml,manifest.json,result.json,command.txt} "$dst/"
-            cp "$src/eval/evaluations.npz" "$dst/eval/"
-        done
+        keep_runs residual_ppo
         ;;
     validate)
         log "the surrogate-only PPO in the simulator on validation"
