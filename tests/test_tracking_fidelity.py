@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from agents_helpers import load_script
+from agents_helpers import load_script, refused
 from test_tracking_surrogate import TINY, TINY_SETTINGS, random_direction_model, tiny_surrogate
 
 import agents.statistics
@@ -62,14 +62,6 @@ def command(model: Path | str, out: Path, *extra: str) -> list[str]:
         "--out",
         str(out),
     ]
-
-
-def refused(capsys: pytest.CaptureFixture[str], run: Any, arguments: list[str]) -> str:
-    with pytest.raises(SystemExit) as exit_:
-        run(arguments)
-    err = capsys.readouterr().err
-    assert exit_.value.code == 2, err
-    return err
 
 
 @pytest.fixture(scope="module", autouse=True)
