@@ -26,7 +26,8 @@
 #              5 seeds x 3e5 steps on the surrogate -> $RUNS/residual_ppo, copied to $R/residual_ppo (not a
 #              default stage yet: chosen on one seed of the surrogate's validation passes, 2026-12-07)
 #   validate   the 5 seeds' mean actions in the simulator on the same 8 validation episodes, as a row of
-#              results/viscosity_tracking/validation (40 episodes, ~1 core-hour)
+#              results/viscosity_tracking/validation (40 episodes, ~1 core-hour); the residual PPO's 5 seeds
+#              too, as a second row, where train_residual has run
 #   fidelity   the baselines' command again on the surrogate (the same grids and validation episodes, and
 #              the 5 PPO seeds in their training env where train has run) -> $RUNS/validation_surrogate (its
 #              traces are ~40 MB: its tables, tuning.csv and traces.png are copied to $R/validation_surrogate), then
@@ -38,7 +39,10 @@
 #              its point means are estimated well enough that the comparison's noise is the simulator's
 #   fresh      the final evaluation, run once everything above is settled: each baseline at its point chosen
 #              on validation (read from validation/tuning.csv; replayed on the 8 validation episodes first)
-#              and the 5 PPO seeds, on the first FRESH (default 64) fresh episodes -> results/viscosity_tracking/fresh
+#              and the 5 seeds of one PPO row, on the first FRESH (default 64) fresh episodes ->
+#              results/viscosity_tracking/fresh. The PPO row is the plain or the residual PPO, whichever has the
+#              lower mean |error| on the simulator's validation episodes (validation/results.json; rule fixed
+#              2026-12-07 before either was played in the simulator); FRESH_BOTH=1 plays the other as well
 #              (not part of the default stages: the fresh split is held out until it is called by name)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -56,6 +60,7 @@ EPISODES=${EPISODES:-8}
 STEPS=${STEPS:-300000}
 HYPER=${HYPER:-}
 FRESH=${FRESH:-64}
+FRESH_BOTH=${FRESH_BOTH:-0}
 SAMPLES=${SAMPLES:-16}
 SURROGATE_KWARGS=${SURROGATE_KWARGS:-"{\"model\": \"$MODEL\"}"}
 split=(--tune-split validation --tune-episodes "$EPISODES" --split validation --episodes "$EPISODES")
@@ -127,6 +132,11 @@ for stage in "${stages[@]}"; do
         log "the surrogate-only PPO in the simulator on validation"
         "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" "${split[@]}" \
             --workers "$W" --no-progress --out "$R/validation"
+        if [ -f "$R/residual_ppo/seed4/model.zip" ]; then
+            log "the residual PPO (on the angle PI) in the simulator on validation"
+            "$PY" -m agents.tracking --env "$ENV" --run "$R/residual_ppo" --play-env "$ENV" "${split[@]}" \
+                --workers "$W" --no-progress --out "$R/validation"
+        fi
         ;;
     fidelity)
         if [ ! -f "$R/validation/manifest.json" ]; then
@@ -143,6 +153,11 @@ for stage in "${stages[@]}"; do
         if [ -f "$R/surrogate_ppo/seed0/model.zip" ]; then
             log "fidelity: the surrogate-only PPO on the surrogate (its training env)"
             "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/surrogate_ppo" \
+                "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$RUNS/validation_surrogate"
+        fi
+        if [ -f "$R/residual_ppo/seed4/model.zip" ]; then
+            log "fidelity: the residual PPO on the surrogate (its training env)"
+            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/residual_ppo" \
                 "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$RUNS/validation_surrogate"
         fi
         log "fidelity: the comparison"
@@ -169,10 +184,25 @@ PYEOF
                 --tune-split validation --tune-episodes "$EPISODES" --split fresh --episodes "$FRESH" \
                 --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
         done
-        log "fresh: the surrogate-only PPO"
-        "$PY" -m agents.tracking --env "$ENV" --run "$R/surrogate_ppo" --play-env "$ENV" \
-            --tune-split validation --tune-episodes "$EPISODES" --split fresh --episodes "$FRESH" \
-            --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
+        # the PPO row: of the plain and the residual PPO, the one with the lower mean |error| on the
+        # simulator's validation episodes (the rule fixed before either was played there); FRESH_BOTH=1 plays
+        # the other too, as a second row
+        mapfile -t ppo < <("$PY" - "$R/validation/results.json" "$FRESH_BOTH" <<'PYEOF'
+import json, sys
+rows = {r["label"]: r["mean_abs_error"]["mean"] for r in json.load(open(sys.argv[1]))["rows"]}
+runs = sorted((rows[f"ppo_{n}"], n) for n in ("surrogate_ppo", "residual_ppo") if f"ppo_{n}" in rows)
+if not runs:
+    sys.exit(f"{sys.argv[1]}: no PPO row on validation (run the stage validate first)")
+for _, name in runs[: len(runs) if sys.argv[2] == "1" else 1]:
+    print(name)
+PYEOF
+        )
+        for name in "${ppo[@]}"; do
+            log "fresh: PPO ($name)"
+            "$PY" -m agents.tracking --env "$ENV" --run "$R/$name" --play-env "$ENV" \
+                --tune-split validation --tune-episodes "$EPISODES" --split fresh --episodes "$FRESH" \
+                --final-evaluation --workers "$W" --no-progress --out "$R/fresh"
+        done
         ;;
     *)
         echo "tracking_study.sh: unknown stage $stage (data fit baselines train train_residual validate fidelity fresh)" >&2
