@@ -26,8 +26,9 @@
 #   others       the other trained rows of the v2 study: SAC (its sampled actions, the policy it
 #                optimises) and PPO on the stress-only id with 4 frames of history
 #                -> fresh/evaluation_sac_sampled, fresh/evaluation_stress_only
-#   summary      the evaluations' tables again (with every constant the folder then holds), and
-#                fresh/evaluation/summary.md (scripts/thickening_summary.py)
+#   summary      the evaluations' tables again (with every constant the folder then holds),
+#                fresh/evaluation/summary.md (scripts/thickening_summary.py) and issue 43's five targets per
+#                trained row, fresh/evaluation/targets.md (scripts/thickening_targets.py)
 #
 # Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
 # constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
@@ -104,6 +105,7 @@ for stage in "${stages[@]}"; do
         "$0" policies learned_front others  # every episode is stored: this only rewrites the tables
         "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_front" "$F/evaluation_sac_sampled" \
             > "$F/evaluation/summary.md"
+        "$PY" scripts/thickening_targets.py "$F/evaluation" > "$F/evaluation/targets.md"
         ;;
     *)
         echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies front learned_front others summary)" >&2
