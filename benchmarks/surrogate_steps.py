@@ -1,4 +1,5 @@
-"""Environment steps per second of the surrogate ids (issue 43: at least 10^3 on one core).
+"""Environment steps per second of the surrogate ids (issue 43: at least 10^3 on one core), the tracking
+surrogate's (issue 44; three action components: strength, polar and azimuthal angle) among them.
 
     python benchmarks/surrogate_steps.py [--ids ...] [--models PATH ...] [--steps 20000] [--seeds 3]
         [--policy gaussian]
@@ -32,21 +33,26 @@ if str(ROOT) not in sys.path:
 
 import dipenv  # noqa: E402,F401  (registers the ids)
 
-IDS = ("dipenv/ThickeningControlSurrogate-v0", "dipenv/ThickeningControlSurrogateStressOnly-v0")
+IDS = (
+    "dipenv/ThickeningControlSurrogate-v0",
+    "dipenv/ThickeningControlSurrogateStressOnly-v0",
+    "dipenv/ViscosityTrackingSurrogate-v0",
+)
 
 
-def actions(policy: str, n: int, seed: int) -> np.ndarray:
+def actions(policy: str, n: int, seed: int, width: int = 1) -> np.ndarray:
+    """``n`` actions of ``width`` components in [-1, 1] (every id here has a box of that range)."""
     rng = np.random.default_rng(seed)
     if policy == "random":
-        return rng.uniform(-1.0, 1.0, size=(n, 1)).astype(np.float32)
-    return np.clip(rng.normal(size=(n, 1)), -1.0, 1.0).astype(np.float32)
+        return rng.uniform(-1.0, 1.0, size=(n, width)).astype(np.float32)
+    return np.clip(rng.normal(size=(n, width)), -1.0, 1.0).astype(np.float32)
 
 
 def measure(env_id: str, model: str | None, steps: int, policy: str, seed: int) -> tuple[float, float, str]:
     kwargs = {} if model is None else {"model": model}
     env = gym.make(env_id, **kwargs)
     env.reset(seed=seed)
-    plan = actions(policy, steps, seed)
+    plan = actions(policy, steps, seed, width=int(np.prod(env.action_space.shape)))
     wall, cpu = time.perf_counter(), time.process_time()
     for action in plan:
         _, _, terminated, truncated, _ = env.step(action)
