@@ -258,6 +258,8 @@ def test_a_controllers_rerun_with_another_grid_is_refused(
 
 V1 = ROOT / "results" / "thickening_control" / "v1"
 V2 = ROOT / "results" / "thickening_control" / "v2"
+
+
 def legacy_markers(*args: Any, **kwargs: Any) -> list[str]:
     from agents.folders import legacy_markers
 

@@ -65,9 +65,7 @@ def test_paired_front_gap_by_hand() -> None:
     assert gap["paired_verdict"].startswith("on the front")
     # What a state shares between the policy and the front drops out: shifting state 1 by +3 in both
     # changes nothing.
-    shifted = paired_front_gap(
-        energies, [[10.0, 15.0, 8.0], [6.0, 10.0, 5.0]], [7.0, 12.0, 7.5], 0.5
-    )
+    shifted = paired_front_gap(energies, [[10.0, 15.0, 8.0], [6.0, 10.0, 5.0]], [7.0, 12.0, 7.5], 0.5)
     assert shifted["front_gap"] == pytest.approx(gap["front_gap"], rel=1e-14)
 
 

@@ -91,8 +91,9 @@ def test_a_folder_with_another_curve_is_refused(tmp_path) -> None:
     (tmp_path / "other" / "notes.txt").write_text("{}")
     with pytest.raises(ValueError, match=r"is not empty \(notes.txt\) and holds no manifest.json"):
         run_flow_curve(SPEC, tmp_path / "other", progress=False)
-    run_simulation(SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02), tmp_path / "run",
-                   progress=False)
+    run_simulation(
+        SimulationConfig(n_particles=40, volume_fraction=0.4, strain=0.02), tmp_path / "run", progress=False
+    )
     with pytest.raises(ValueError, match="belongs to another command .'sim run'"):
         run_flow_curve(SPEC, tmp_path / "run", progress=False)
     (tmp_path / "run" / "manifest.json").unlink()  # a run written before manifests
@@ -125,8 +126,11 @@ def test_bad_specs_name_the_parameter(rates, strain, message) -> None:
     "arguments, message",
     [
         (["--rates", "1,0.5"], "--rates must increase"),
-        (["--rates", "0,1"], "argument --rates: must be in [0.001, 1000] (units of the reference rate "
-         "gammadot_ref; a flow curve has no rate-0 point), got '0'"),
+        (
+            ["--rates", "0,1"],
+            "argument --rates: must be in [0.001, 1000] (units of the reference rate "
+            "gammadot_ref; a flow curve has no rate-0 point), got '0'",
+        ),
         (["--rates", "1,-1"], "argument --rates: must be in [0.001, 1000]"),
         (["--rates", "1,1e20"], "argument --rates: must be in [0.001, 1000]"),  # issue 45: was an IndexError
         (["--rates", "1,1e300"], "argument --rates: must be in [0.001, 1000]"),
@@ -150,8 +154,22 @@ def test_cli_bad_input_exits_2_naming_the_flag(tmp_path, capsys, arguments, mess
 def test_cli_one_curve_per_field(tmp_path, capsys) -> None:
     out = tmp_path / "curves"
     code = main(
-        ["flow-curve", "--n-particles", "64", "--phi", "0.3", "--mason", "2,inf", "--rates", "1,2",
-         "--strain-per-rate", "0.016", "--out", str(out), "--quiet"]
+        [
+            "flow-curve",
+            "--n-particles",
+            "64",
+            "--phi",
+            "0.3",
+            "--mason",
+            "2,inf",
+            "--rates",
+            "1,2",
+            "--strain-per-rate",
+            "0.016",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
     )
     assert code == 0
     for folder in ("Mn2", "Mninf"):
@@ -405,6 +423,7 @@ def test_every_parser_of_sim_refuses_prefixes() -> None:
         text = path.read_text()
         for match in re.finditer(r"ArgumentParser\(", text):
             call = text[match.start() : text.find("\n)", match.start()) + 2]
-            assert "allow_abbrev=False" in call or "class _Parser(argparse.ArgumentParser)" in text[
-                match.start() - 20 : match.end() + 5
-            ], f"{path.relative_to(root)}: an ArgumentParser without allow_abbrev=False"
+            assert (
+                "allow_abbrev=False" in call
+                or "class _Parser(argparse.ArgumentParser)" in text[match.start() - 20 : match.end() + 5]
+            ), f"{path.relative_to(root)}: an ArgumentParser without allow_abbrev=False"

@@ -85,8 +85,11 @@ def test_validation_schedules_are_stratified_by_mean_rate() -> None:
 
 @pytest.mark.parametrize(
     "data, message",
-    [({"times": [0, 1], "rates": [1, 0]}, "needs shear"), ("fast", "schedule must be"),
-     ({"times": [0, 2, 1], "rates": [1, 1, 1]}, "times must increase")],
+    [
+        ({"times": [0, 1], "rates": [1, 0]}, "needs shear"),
+        ("fast", "schedule must be"),
+        ({"times": [0, 2, 1], "rates": [1, 1, 1]}, "times must increase"),
+    ],
 )
 def test_bad_schedules_are_refused(data, message) -> None:
     with pytest.raises(ValueError, match=message):

@@ -60,8 +60,12 @@ def test_following_a_schedule_accumulates_its_integral() -> None:
 
 @pytest.mark.parametrize(
     "times, values, message",
-    [((), (), "non-empty"), ((0, 1), (1,), "one length"), ((0, math.nan), (1, 1), "finite"),
-     ((1, 0), (1, 1), "must not decrease")],
+    [
+        ((), (), "non-empty"),
+        ((0, 1), (1,), "one length"),
+        ((0, math.nan), (1, 1), "finite"),
+        ((1, 0), (1, 1), "must not decrease"),
+    ],
 )
 def test_bad_variants_are_refused(times, values, message) -> None:
     with pytest.raises(ValueError, match=message):
