@@ -129,20 +129,27 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def load_steady(source: Path) -> tuple[sim.SimulationConfig, sim.SimulationState, float]:
+    """A finished steady run's config, end state and steady eta_r (its ``relative_viscosity``);
+    ``ValueError`` saying why where ``source`` is not a finished, sheared run with a field."""
+    try:
+        config = sim.SimulationConfig.from_dict(read_json(source / "params.json")["config"])
+        state = sim.SimulationState.load(source / "final_state.npz")
+        eta_before = float(read_json(source / "result.json")["relative_viscosity"])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise ValueError(f"not a finished run ({exc})") from None
+    if math.isinf(config.mason_number) or config.shear_rate == 0.0:
+        raise ValueError("needs a sheared run with a field")
+    return config, state, eta_before
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        params = read_json(args.source / "params.json")
-        config = sim.SimulationConfig.from_dict(params["config"])
-        state = sim.SimulationState.load(args.source / "final_state.npz")
-        eta_before = float(read_json(args.source / "result.json")["relative_viscosity"])
-    except (OSError, ValueError, KeyError, TypeError) as exc:
-        parser.exit(2, f"direction_switch.py: error: --from {args.source}: not a finished run ({exc})\n")
-    if math.isinf(config.mason_number) or config.shear_rate == 0.0:
-        parser.exit(
-            2, f"direction_switch.py: error: --from {args.source}: needs a sheared run with a field\n"
-        )
+        config, state, eta_before = load_steady(args.source)
+    except ValueError as exc:
+        parser.exit(2, f"direction_switch.py: error: --from {args.source}: {exc}\n")
     identity = {
         "source": str(args.source.resolve()),
         "source_config": config.to_dict(),
@@ -155,9 +162,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     except RunFolderError as exc:
         parser.exit(2, f"direction_switch.py: error: {exc}\n")
     csv = args.out / "switch.csv"
-    if (
-        csv.exists()
-    ):  # simulated before: only the fit is redone (it is cheap, and its method may have changed)
+    if csv.exists():
+        # simulated before: only the fit is redone (it is cheap, and its method may have changed)
         gamma, means = read_switch(csv)
     else:
         simulation = sim.Simulation(config, state, keep_records=True)
