@@ -92,20 +92,8 @@ def test_switch_command_turns_the_field(tmp_path) -> None:
     run_simulation(config, tmp_path / "steady", progress=False)
     module = _script()
     out = tmp_path / "switch"
-    result = module.main(
-        [
-            "--from",
-            str(tmp_path / "steady"),
-            "--direction",
-            "0,0,2",
-            "--strain",
-            "0.04",
-            "--bin",
-            "0.01",
-            "--out",
-            str(out),
-        ]
-    )
+    argv = ["--from", str(tmp_path / "steady"), "--direction", "0,0,2", "--strain", "0.04", "--bin", "0.01"]
+    result = module.main([*argv, "--out", str(out)])
     assert result["from_direction"] == [0.0, 1.0, 0.0] and result["to_direction"] == [0.0, 0.0, 1.0]
     rows = (out / "switch.csv").read_text().splitlines()
     assert rows[0] == "strain_since_switch,eta_r,n1,n2" and len(rows) >= 4
@@ -116,20 +104,7 @@ def test_switch_command_turns_the_field(tmp_path) -> None:
     # a rerun with switch.csv present refits only: the table is not rewritten, the fit is the same
     stamp = (out / "switch.csv").stat().st_mtime_ns
     (out / "fit.json").unlink()
-    again = module.main(
-        [
-            "--from",
-            str(tmp_path / "steady"),
-            "--direction",
-            "0,0,2",
-            "--strain",
-            "0.04",
-            "--bin",
-            "0.01",
-            "--out",
-            str(out),
-        ]
-    )
+    again = module.main([*argv, "--out", str(out)])
     assert (out / "switch.csv").stat().st_mtime_ns == stamp
     # switch.csv keeps 6 significant digits: the refit's values agree to 1e-3 (the fit's standard errors,
     # from a 4-bin covariance, move more and are not compared)

@@ -88,38 +88,12 @@ def test_a_turned_field_changes_the_split_and_bad_edges_are_refused(steady: Path
     """Turning the field to z changes the field's own parts from the first bin on (a different field on the
     same structure); edges that do not start at 0 or pass --strain exit with code 2."""
     module = _script()
-    out = module.main(
-        [
-            "--from",
-            str(steady),
-            "--direction",
-            "0,0,1",
-            "--strain",
-            "0.02",
-            "--edges",
-            "0",
-            "0.02",
-            "--out",
-            str(tmp_path / "turn"),
-        ]
-    )
+    turn = ["--from", str(steady), "--direction", "0,0,1", "--strain", "0.02"]
+    out = module.main([*turn, "--edges", "0", "0.02", "--out", str(tmp_path / "turn")])
     keep, switch = _rows(out)
     field_parts = [n for n in module.STRESS_CONTRIBUTIONS if n.startswith(("icep", "dep"))]
     assert any(float(keep[n]) != float(switch[n]) for n in field_parts)
     for edges in (["0.01", "0.02"], ["0", "0.05"]):
         with pytest.raises(SystemExit) as exit_info:
-            module.main(
-                [
-                    "--from",
-                    str(steady),
-                    "--direction",
-                    "0,0,1",
-                    "--strain",
-                    "0.02",
-                    "--edges",
-                    *edges,
-                    "--out",
-                    str(tmp_path / "bad"),
-                ]
-            )
+            module.main([*turn, "--edges", *edges, "--out", str(tmp_path / "bad")])
         assert exit_info.value.code == 2
