@@ -143,6 +143,22 @@ def load_steady(source: Path) -> tuple[sim.SimulationConfig, sim.SimulationState
     return config, state, eta_before
 
 
+def turned(
+    config: sim.SimulationConfig,
+    state: sim.SimulationState,
+    direction: tuple[float, float, float],
+    strain: float,
+) -> tuple[sim.StepRecords, np.ndarray]:
+    """From ``state``, the field turned to ``direction`` at the run's Mason number and ``strain`` of shear:
+    the step records and each step's strain since the turn."""
+    simulation = sim.Simulation(config, state, keep_records=True)
+    simulation.set_field(config.mason_number, direction)
+    start = simulation.state.strain
+    simulation.advance_to(simulation.state.time + strain / simulation.shear_rate)
+    records = simulation.records
+    return records, records.strain - start
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -166,14 +182,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         # simulated before: only the fit is redone (it is cheap, and its method may have changed)
         gamma, means = read_switch(csv)
     else:
-        simulation = sim.Simulation(config, state, keep_records=True)
-        simulation.set_field(config.mason_number, args.direction)
-        start = simulation.state.strain
-        simulation.advance_to(simulation.state.time + args.strain / simulation.shear_rate)
-        records = simulation.records
+        records, since = turned(config, state, args.direction, args.strain)
         eta, n1, n2 = records.rheology()
         strain_steps = records.time_step * records.shear_rate
-        gamma, means = binned(records.strain - start, strain_steps, np.stack([eta, n1, n2], axis=1), args.bin)
+        gamma, means = binned(since, strain_steps, np.stack([eta, n1, n2], axis=1), args.bin)
         lines = ["strain_since_switch,eta_r,n1,n2"] + [
             f"{g:.6g},{m[0]:.6g},{m[1]:.6g},{m[2]:.6g}" for g, m in zip(gamma, means, strict=True)
         ]

@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from direction_switch import _direction, _positive, load_steady  # noqa: E402
+from direction_switch import _direction, _positive, load_steady, turned  # noqa: E402
 
 import sim  # noqa: E402
 from sim.runs import RunFolderError, claim  # noqa: E402
@@ -53,15 +53,12 @@ def split_bins(
 
 
 def shear_parts(config: sim.SimulationConfig, state: sim.SimulationState, direction, strain: float):
-    """One run from ``state`` with the field along ``direction`` for ``strain``: (each step's strain since
-    the start, each step's strain, steps x C of ``Sigma_xy / gammadot`` per contribution)."""
-    simulation = sim.Simulation(config, state, keep_records=True)
-    simulation.set_field(config.mason_number, direction)
-    start = simulation.state.strain
-    simulation.advance_to(simulation.state.time + strain / simulation.shear_rate)
-    records = simulation.records
+    """One run from ``state`` with the field along ``direction`` for ``strain``
+    (:func:`direction_switch.turned`): (each step's strain since the start, each step's strain, steps x C
+    of ``Sigma_xy / gammadot`` per contribution)."""
+    records, since = turned(config, state, direction, strain)
     parts = records.stress[:, :, 0, 1] / records.shear_rate[:, None]
-    return records.strain - start, records.time_step * records.shear_rate, parts
+    return since, records.time_step * records.shear_rate, parts
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -150,16 +150,13 @@ for stage in "${stages[@]}"; do
                 --no-progress --out "$RUNS/validation_surrogate"
         }
         grids surrogate_one
-        if [ -f "$R/surrogate_ppo/seed0/model.zip" ]; then
-            log "fidelity: the surrogate-only PPO on the surrogate (its training env)"
-            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/surrogate_ppo" \
+        # each PPO row in its training env, once all 5 seeds are kept (keep_runs copies seed4 last)
+        for name in surrogate_ppo residual_ppo; do
+            [ -f "$R/$name/seed4/model.zip" ] || continue
+            log "fidelity: PPO ($name) on the surrogate (its training env)"
+            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/$name" \
                 "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$RUNS/validation_surrogate"
-        fi
-        if [ -f "$R/residual_ppo/seed4/model.zip" ]; then
-            log "fidelity: the residual PPO on the surrogate (its training env)"
-            "$PY" -m agents.tracking --env "$SURROGATE" --env-kwargs "$SURROGATE_KWARGS" --run "$R/residual_ppo" \
-                "${split[@]}" --realisations "$SAMPLES" --workers "$W" --no-progress --out "$RUNS/validation_surrogate"
-        fi
+        done
         log "fidelity: the comparison"
         mkdir -p "$R/validation_surrogate"
         cp "$RUNS/validation_surrogate"/{command.txt,manifest.json,table.md,results.json,tuning.csv,traces.png} \

@@ -3,24 +3,12 @@ turns the field of a finished run and writes its files."""
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location(
-        "direction_switch", ROOT / "scripts" / "direction_switch.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from agents_helpers import load_script
 
 
 def _binned_exponential(centres: np.ndarray, width: float, before: float, after: float, scale: float):
@@ -37,7 +25,7 @@ def _binned_exponential(centres: np.ndarray, width: float, before: float, after:
 def test_bin_mean_decay_matches_brute_force_averaging() -> None:
     """The closed-form bin mean of exp(-g/s) against midpoint-rule averaging, first bin (from 0) included:
     to 1e-6 (the midpoint rule's error is below 1e-7 here)."""
-    module = _script()
+    module = load_script("direction_switch")
     centres = np.array([0.25, 0.75, 3.25])
     for scale in (0.05, 0.7, 4.0):
         expected = _binned_exponential(centres, 0.5, 1.0, 0.0, scale)
@@ -48,7 +36,7 @@ def test_fit_recovers_a_known_switch() -> None:
     """Bin means of eta = 26 + (8.5 - 26) exp(-g / 1.7) in 0.25-strain bins with 1% noise, anchored at
     eta_before 8.5: gamma_s within 5% (the noise's effect on a 60-point fit is ~1%), the plateau within 0.2;
     the half-way strain ln 2 x 1.7 = 1.18 lies below the reported bound, within a bin or two of it."""
-    module = _script()
+    module = load_script("direction_switch")
     rng = np.random.default_rng(1)
     gamma = np.arange(0.125, 15.0, 0.25)
     eta = _binned_exponential(gamma, 0.25, 8.5, 26.0, 1.7) + rng.normal(0.0, 0.26, gamma.size)
@@ -63,7 +51,7 @@ def test_fit_resolves_a_switch_faster_than_one_bin() -> None:
     """A switch from 32 to 8 with gamma_s = 0.1, seen in 0.5-strain bins (the first bin already holds
     nearly all of the change, as z -> y at Mn 0.2 does): the anchored bin-averaged fit recovers gamma_s
     within 10% (noise 0.1 on 24 bins), and the half-way bound is the first bin's upper edge, 0.5."""
-    module = _script()
+    module = load_script("direction_switch")
     rng = np.random.default_rng(2)
     gamma = np.arange(0.25, 12.0, 0.5)
     eta = _binned_exponential(gamma, 0.5, 32.0, 8.0, 0.1) + rng.normal(0.0, 0.1, gamma.size)
@@ -74,7 +62,7 @@ def test_fit_resolves_a_switch_faster_than_one_bin() -> None:
 
 
 def test_binned_means_are_step_weighted() -> None:
-    module = _script()
+    module = load_script("direction_switch")
     strain = np.array([0.0, 0.1, 0.4, 0.6, 0.9])
     dt = np.array([0.1, 0.3, 0.2, 0.3, 0.1])
     values = np.array([[1.0], [2.0], [3.0], [4.0], [5.0]])
@@ -90,7 +78,7 @@ def test_switch_command_turns_the_field(tmp_path) -> None:
         n_particles=32, volume_fraction=0.3, strain=0.04, mason_number=1.0, seed=3, near_field_cutoff=3.0
     )
     run_simulation(config, tmp_path / "steady", progress=False)
-    module = _script()
+    module = load_script("direction_switch")
     out = tmp_path / "switch"
     argv = ["--from", str(tmp_path / "steady"), "--direction", "0,0,2", "--strain", "0.04", "--bin", "0.01"]
     result = module.main([*argv, "--out", str(out)])

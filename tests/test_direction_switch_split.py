@@ -3,27 +3,16 @@
 from __future__ import annotations
 
 import csv
-import importlib.util
 from pathlib import Path
 
 import numpy as np
 import pytest
-
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _script():
-    spec = importlib.util.spec_from_file_location(
-        "direction_switch_split", ROOT / "scripts" / "direction_switch_split.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+from agents_helpers import load_script
 
 
 def test_split_bins_are_step_weighted() -> None:
     """Two contributions over steps of unequal strain, by hand; an empty bin is NaN."""
-    module = _script()
+    module = load_script("direction_switch_split")
     strain = np.array([0.0, 0.1, 0.3, 0.6])
     steps = np.array([0.1, 0.2, 0.3, 0.1])
     parts = np.array([[1.0, 10.0], [2.0, 20.0], [3.0, 30.0], [4.0, 40.0]])
@@ -59,7 +48,7 @@ def test_split_adds_up_to_eta_r_and_keeping_the_field_repeats_the_run(steady: Pa
     from sim import SimulationConfig, SimulationState
     from sim.runs.io import read_json
 
-    module = _script()
+    module = load_script("direction_switch_split")
     argv = ["--from", str(steady), "--direction", "0,1,0", "--strain", "0.03"]
     out = module.main([*argv, "--edges", "0", "0.01", "0.03", "--out", str(tmp_path / "same")])
     rows = _rows(out)
@@ -87,7 +76,7 @@ def test_split_adds_up_to_eta_r_and_keeping_the_field_repeats_the_run(steady: Pa
 def test_a_turned_field_changes_the_split_and_bad_edges_are_refused(steady: Path, tmp_path) -> None:
     """Turning the field to z changes the field's own parts from the first bin on (a different field on the
     same structure); edges that do not start at 0 or pass --strain exit with code 2."""
-    module = _script()
+    module = load_script("direction_switch_split")
     turn = ["--from", str(steady), "--direction", "0,0,1", "--strain", "0.02"]
     out = module.main([*turn, "--edges", "0", "0.02", "--out", str(tmp_path / "turn")])
     keep, switch = _rows(out)

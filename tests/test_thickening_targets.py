@@ -1,6 +1,5 @@
 """scripts/thickening_targets.py: issue 43's five targets from an agents.evaluate folder (no simulation)."""
 
-import importlib.util
 import json
 from pathlib import Path
 from typing import Any
@@ -8,12 +7,9 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
+from agents_helpers import load_script
 
-_spec = importlib.util.spec_from_file_location(
-    "thickening_targets", Path(__file__).parents[1] / "scripts" / "thickening_targets.py"
-)
-thickening_targets = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(thickening_targets)
+thickening_targets = load_script("thickening_targets")
 
 V2 = Path(__file__).parents[1] / "results" / "thickening_control" / "v2"
 FINAL = V2 / "evaluation_final"
