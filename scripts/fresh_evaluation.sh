@@ -28,8 +28,9 @@
 #                optimises) and PPO on the stress-only id with 4 frames of history
 #                -> fresh/evaluation_sac_sampled, fresh/evaluation_stress_only
 #   summary      the evaluations' tables again (with every constant the folder then holds),
-#                fresh/evaluation/summary.md (scripts/thickening_summary.py) and issue 43's five targets per
-#                trained row, fresh/evaluation/targets.md (scripts/thickening_targets.py)
+#                fresh/evaluation/summary.md (scripts/thickening_summary.py; every evaluation folder) and
+#                issue 43's five targets per trained row of every folder, fresh/evaluation/targets.md
+#                (scripts/thickening_targets.py)
 #
 # Power: one realisation per state and EPISODES = 64 give the 5-seed policies' paired gap to the best
 # constant a 95% interval of about +-5 (docs, "Power"). Cost on one core of the 2-core machine, about
@@ -110,8 +111,12 @@ for stage in "${stages[@]}"; do
     summary)
         "$0" policies learned_front others  # every episode is stored: this only rewrites the tables
         "$PY" scripts/thickening_summary.py "$F/evaluation" "$F/evaluation_front" "$F/evaluation_sac_sampled" \
+            "$F/evaluation_stress_only" \
             > "$F/evaluation/summary.md"
-        "$PY" scripts/thickening_targets.py "$F/evaluation" > "$F/evaluation/targets.md"
+        for d in evaluation evaluation_front evaluation_sac_sampled evaluation_stress_only; do
+            "$PY" scripts/thickening_targets.py "$F/$d"
+            echo
+        done > "$F/evaluation/targets.md"
         ;;
     *)
         echo "fresh_evaluation.sh: unknown stage $stage (constants controllers policies front learned_front others summary)" >&2
