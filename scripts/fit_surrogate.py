@@ -528,6 +528,16 @@ def choose(metrics: dict[str, dict[str, Any]], key: str = "held_out") -> tuple[s
     )
 
 
+def data_path(path: Path) -> str:
+    """Where the fit's data lie, as recorded with the weights: relative to the repository root when inside
+    it (``results/surrogate_data``, the same in any clone or worktree), else absolute."""
+    resolved = path.resolve()
+    try:
+        return resolved.relative_to(ROOT).as_posix()
+    except ValueError:
+        return str(resolved)
+
+
 def git_commit() -> str:
     try:
         return subprocess.run(
@@ -606,7 +616,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         )
     common = common_arrays(episodes, fit)
     provenance = {
-        "data": str(args.data.resolve()),
+        "data": data_path(args.data),
         "episodes": len(episodes),
         "fit_episodes": len(fit),
         "held_out_episodes": [e.seed for e in held],

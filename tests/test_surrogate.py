@@ -292,6 +292,11 @@ def test_lambda_fit_recovers_a_known_system(known_data, fitted_known) -> None:
     assert model.metadata["episodes"] == 50 and model.metadata["fit_episodes"] == 40
     assert model.metadata["held_out_episodes"] == list(range(4, 50, 5))
     assert "fit_surrogate.py" in model.metadata["command"] and model.metadata["seed"] == 0
+    # the data's place: absolute outside the repository (here a temporary folder), relative inside it, so
+    # that a fit made in a worktree or another clone records the same path
+    assert model.metadata["data"] == str(known_data[0].resolve())
+    fit = script("fit_surrogate")
+    assert fit.data_path(ROOT / "results" / "surrogate_data") == "results/surrogate_data"
     metrics = json.loads(path.with_suffix(".metrics.json").read_text())
     assert metrics["kept"] == "lambda" and metrics["routes"]["lambda"]["held_out"]["episodes"] == 10
     held = metrics["routes"]["lambda"]["held_out"]
