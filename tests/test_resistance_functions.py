@@ -10,9 +10,12 @@ near-contact forms leave out, and the neglected tail of the far-field series.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from dense_reference import (
+    REFERENCE_TABLE_PATH,
     SYMMETRIC_TRACELESS_IDENTITY,
     dense_grand_resistance,
     dense_pair_list,
@@ -529,3 +532,13 @@ def test_dense_pair_list_matches_wide_lattice_search() -> None:
     assert len(expected_pairs) > 10
     np.testing.assert_array_equal(pairs, np.array(expected_pairs))
     np.testing.assert_allclose(separations, np.array(expected_separations), atol=1e-12)
+
+
+SHARED_TABLE = Path(__file__).resolve().parents[2] / "shared" / "reference" / REFERENCE_TABLE_PATH.name
+
+
+@pytest.mark.skipif(not SHARED_TABLE.is_file(), reason="no shared reference folder beside this checkout")
+def test_reference_table_is_the_shared_copy() -> None:
+    """tests/reference_data/README.md says the table is a byte-identical copy of the project's shared one
+    (header included: it states the rows' accuracy, which the tolerances above follow)."""
+    assert REFERENCE_TABLE_PATH.read_bytes() == SHARED_TABLE.read_bytes()
