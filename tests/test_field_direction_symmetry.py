@@ -358,3 +358,24 @@ def test_field_direction_is_normalised_and_validated() -> None:
     stretched = Simulation(config, SimulationState.initial(_packing(), 1.0, (0.0, 0.0, 2.0)))
     with pytest.raises(ValueError, match="unit vector"):
         stretched.advance(1)
+
+
+@pytest.mark.parametrize(("direction", "sign"), [((1, 1, 0), 1.0), ((1, -1, 0), -1.0), ((0, 1, 1), 0.0)])
+def test_isolated_stresslet_gives_a_diagonal_field_a_shear_stress(
+    direction: tuple[int, ...], sign: float
+) -> None:
+    """docs/direction.md#the-bulk-map: each sphere's isolated ICEP stresslet is
+    ``(27/4) phi / Mn (e e - I/3)`` (units ``eta gammadot``; physics.md §4: ``n . S0 = (27/4) phi``), so a
+    field along the extensional (compressional) diagonal adds ``+(-)(27/8) phi / Mn`` to the shear stress
+    whatever the particles do, and one in the y-z plane adds nothing. Closed form; tolerance 1e-12
+    (round-off)."""
+    phi, mason = 0.3, 0.2
+    config = SimulationConfig(
+        n_particles=100, volume_fraction=phi, mason_number=mason, field_direction=direction, seed=1
+    )
+    records = Simulation(config).advance(1)
+    isolated = records.stress[0, list(STRESS_CONTRIBUTIONS).index("icep_isolated")]
+    e = np.asarray(direction, dtype=float) / np.linalg.norm(direction)
+    expected = 27 / 4 * phi / mason * (np.outer(e, e) - np.eye(3) / 3)
+    np.testing.assert_allclose(isolated, expected, rtol=1e-12, atol=1e-12)
+    assert isolated[0, 1] == pytest.approx(sign * 27 / 8 * phi / mason, abs=1e-12)
