@@ -38,8 +38,8 @@
 # policies ~11 h, front ~2 h, learned_front ~2 h, others ~5.5 h.
 # Scope cut (decided 2026-12-07 19:35 UTC on cost alone, before any fresh return was read): the secondary
 # rows (learned_front, others) play the first SECONDARY = 32 fresh states only, paired with every other row on
-# those states; their gaps to the best constant then have intervals of about +-7 (sqrt 2 wider), which the
-# docs state. The headline rows (policies, constants, controllers, front) keep all EPISODES states.
+# those states; their gaps to the best constant then have intervals of about +-5 to +-7 (sqrt 2 wider than
+# at 64), which the docs state. The headline rows (policies, constants, controllers, front) keep all EPISODES states.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 PY=${PYTHON:-.venv/bin/python}

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from sim import Simulation, SimulationConfig, SimulationState
+from sim.dipolophoresis.far_field import MECHANISM_WEIGHTS
 from sim.dipolophoresis.near_field import pair_functions
 
 
@@ -90,7 +91,7 @@ def test_velocity_split_of_a_quiescent_pair(mechanism: str, along: bool) -> None
     6.7e-5 for DEP; a p = 3 fit there would leave 2.6e-3), so the tolerance is 1e-3 relative."""
     r0 = 3.0
     k = 0 if along else 1  # F_par or F_perp
-    icep, dep = {"dip": (1.0, 1.0), "icep": (1.0, 0.0), "dep": (0.0, 1.0)}[mechanism]
+    icep, dep = MECHANISM_WEIGHTS[mechanism]
     exact = abs(icep * pair_functions(r0, "icep")[k] + dep * pair_functions(r0, "dep")[k])
     speeds, lengths = [], []
     for phi in (0.001, 0.002):
