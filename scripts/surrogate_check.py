@@ -356,6 +356,16 @@ def play(
     return {**record, "failed": False}
 
 
+def recorded_path(path: Path) -> str:
+    """``path`` as the check records it (manifest, summaries): relative to the repository root when inside
+    it (``dipenv/data/surrogate_v1.npz``, the same in any clone or worktree), else absolute."""
+    resolved = path.resolve()
+    try:
+        return resolved.relative_to(ROOT).as_posix()
+    except ValueError:
+        return str(resolved)
+
+
 def surrogate_env(env_id: str, model: Path, extra: dict[str, Any]) -> gym.Env:
     """The surrogate of the simulator id ``env_id`` (its settings) with ``model``."""
     if is_tracking(env_id):
@@ -494,7 +504,7 @@ def compare(args: argparse.Namespace, specs: list[dict[str, Any]]) -> dict[str, 
     )
     summary = {
         "env": args.env,
-        "model": str(args.model),
+        "model": recorded_path(args.model),
         "rows": rows,
         "order_simulator": order_sim,
         "order_surrogate": order_sur,
@@ -527,7 +537,7 @@ def compare(args: argparse.Namespace, specs: list[dict[str, Any]]) -> dict[str, 
         write_tracking_summary(args, summary)
         return summary
     lines = [
-        f"Surrogate check: {args.env}, model {args.model}; episodes from validation start states, "
+        f"Surrogate check: {args.env}, model {recorded_path(args.model)}; episodes from validation start states, "
         f"schedule seeds {args.schedule_seed} + j.",
         "",
         "| row | episodes | eta_r error (RMS) | simulator sd | surrogate sd | spread ratio | error < sd | "
@@ -561,7 +571,7 @@ def write_tracking_summary(args: argparse.Namespace, summary: dict[str, Any]) ->
     ``|eta_r - target|``, and both rankings."""
     rows = summary["rows"]
     lines = [
-        f"Surrogate check (tracking): {args.env}, model {args.model}; episodes from validation start "
+        f"Surrogate check (tracking): {args.env}, model {recorded_path(args.model)}; episodes from validation start "
         f"states, schedule seeds {args.schedule_seed} + j, target seeds {args.target_seed} + j.",
         "",
         "| row | episodes | eta_r error (RMS) | simulator sd | surrogate sd | spread ratio | error < sd | "
@@ -640,7 +650,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any] | None:
     manifest = {
         "version": CHECK_VERSION,
         "env": args.env,
-        "model": str(args.model),
+        "model": recorded_path(args.model),
         "schedule_seed": args.schedule_seed,
         "surrogate_seed": SURROGATE_SEED,
         "samples": args.samples,

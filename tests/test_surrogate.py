@@ -525,6 +525,9 @@ def test_surrogate_check_runs_resumes_and_compares_on_the_tiny_id(tmp_path: Path
             "--samples", "3", "--rows", "constant:0.5", "pulse:2.5:0.5"]  # fmt: skip
     summary = check.main(argv)
     assert summary is not None and set(summary["rows"]) == {"constant:0.5", "pulse:2.5:0.5"}
+    # the model is recorded repo-relative when inside the repository (any clone reads the same), else absolute
+    assert summary["model"] == str(model.resolve())
+    assert check.recorded_path(check.ROOT / "dipenv" / "data" / "x.npz") == "dipenv/data/x.npz"
     row = summary["rows"]["constant:0.5"]
     assert row["realisations"] == 2 and row["samples"] == 3 and row["episodes"] == [0]
     files = sorted(p.relative_to(out) for p in out.rglob("*.json"))
