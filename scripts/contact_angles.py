@@ -51,8 +51,7 @@ def ring_sectors(
 ) -> tuple[float, float, float, float]:
     """Mean ``g_xy`` over the ring bins within ``half_angle`` degrees of the ``y`` axis (poles) and of the
     ``x`` axis (equators), the ring's largest bin and that bin's angle from the ``y`` axis in degrees (in
-    [0, 90]).
-    ``g_xy[i, j]``: ``x`` bin ``i``, ``y`` bin ``j``."""
+    [0, 90]). ``g_xy[i, j]``: ``x`` bin ``i``, ``y`` bin ``j``."""
     xc = 0.5 * (x_edges[1:] + x_edges[:-1])
     yc = 0.5 * (y_edges[1:] + y_edges[:-1])
     x, y = np.meshgrid(xc, yc, indexing="ij")
@@ -105,7 +104,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         "--half-angle", type=float, default=10.0, help="sector half-angle, degrees, in (0, 45]"
     )
     parser.add_argument("--ring", type=float, nargs=2, default=(2.0, 2.3), help="contact ring, radii in a")
-    parser.add_argument("--md", action="store_true", help="also the mean and seed spread per point")
+    parser.add_argument("--md", action="store_true", help="also the means over seeds per point")
     args = parser.parse_args(argv)
     if not 0.0 < args.half_angle <= 45.0:
         parser.error(
