@@ -98,7 +98,7 @@ def measure(folder: Path, ring: tuple[float, float], half_angle: float) -> dict[
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("paths", nargs="+", type=Path, help="run folders or sweep folders")
     parser.add_argument(
         "--half-angle", type=float, default=10.0, help="sector half-angle, degrees, in (0, 45]"

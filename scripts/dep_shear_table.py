@@ -65,7 +65,7 @@ def row(results: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("sweeps", nargs="+", type=Path, help="sweep folders of --mechanism dep runs")
     parser.add_argument(
         "--dip", type=Path, required=True, help="a sweep of the full DIP with phi 0.15 points"

@@ -537,8 +537,8 @@ def compare(args: argparse.Namespace, specs: list[dict[str, Any]]) -> dict[str, 
         write_tracking_summary(args, summary)
         return summary
     lines = [
-        f"Surrogate check: {args.env}, model {recorded_path(args.model)}; episodes from validation start states, "
-        f"schedule seeds {args.schedule_seed} + j.",
+        f"Surrogate check: {args.env}, model {recorded_path(args.model)}; episodes from validation start "
+        f"states, schedule seeds {args.schedule_seed} + j.",
         "",
         "| row | episodes | eta_r error (RMS) | simulator sd | surrogate sd | spread ratio | error < sd | "
         "return, simulator | return, surrogate |",
@@ -571,8 +571,9 @@ def write_tracking_summary(args: argparse.Namespace, summary: dict[str, Any]) ->
     ``|eta_r - target|``, and both rankings."""
     rows = summary["rows"]
     lines = [
-        f"Surrogate check (tracking): {args.env}, model {recorded_path(args.model)}; episodes from validation start "
-        f"states, schedule seeds {args.schedule_seed} + j, target seeds {args.target_seed} + j.",
+        f"Surrogate check (tracking): {args.env}, model {recorded_path(args.model)}; episodes from "
+        f"validation start states, schedule seeds {args.schedule_seed} + j, target seeds "
+        f"{args.target_seed} + j.",
         "",
         "| row | episodes | eta_r error (RMS) | simulator sd | surrogate sd | spread ratio | error < sd | "
         "mean abs(eta_r - target), simulator | mean abs(eta_r - target), surrogate | return, simulator | "
