@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -91,7 +90,6 @@ def measure(folder: Path, ring: tuple[float, float], half_angle: float) -> dict[
         "seed": params["seed"],
         "poles": poles,
         "equators": equators,
-        "ratio": poles / equators if equators > 0 else math.inf,
         "peak": peak,
         "peak_angle": peak_angle,
     }
