@@ -31,7 +31,8 @@ import numpy as np
 
 
 def run_folders(paths: list[Path]) -> list[Path]:
-    """The run folders named or held (one level down) by ``paths``, sorted."""
+    """The run folders named or held (one level down) by ``paths``, sorted; ValueError naming a path that is
+    neither, or when there are none."""
     found: list[Path] = []
     for path in paths:
         if (path / "pair_distribution.npz").is_file():
@@ -39,9 +40,9 @@ def run_folders(paths: list[Path]) -> list[Path]:
         elif path.is_dir():
             found.extend(sorted(p.parent for p in path.glob("*/pair_distribution.npz")))
         else:
-            raise SystemExit(f"contact_angles.py: {path} is neither a run folder nor a sweep folder")
+            raise ValueError(f"{path} is neither a run folder nor a sweep folder")
     if not found:
-        raise SystemExit("contact_angles.py: no pair_distribution.npz under the paths given")
+        raise ValueError("no pair_distribution.npz under the paths given")
     return found
 
 
@@ -72,11 +73,15 @@ def ring_sectors(
 
 
 def measure(folder: Path, ring: tuple[float, float], half_angle: float) -> dict[str, Any]:
-    """One run's sector means and its parameters."""
-    params = json.loads((folder / "params.json").read_text())["config"]
+    """One run's sector means and its parameters; ValueError naming the folder where its ``params.json`` is
+    missing or unreadable or its field is not along ``y``."""
+    try:
+        params = json.loads((folder / "params.json").read_text())["config"]
+    except (OSError, ValueError, KeyError) as error:
+        raise ValueError(f"{folder}: no readable params.json with a config ({error})") from error
     direction = np.asarray(params["field_direction"], dtype=float)
     if not np.allclose(direction / np.linalg.norm(direction), [0.0, 1.0, 0.0]):
-        raise SystemExit(f"contact_angles.py: {folder}: the field is along {direction}, not y")
+        raise ValueError(f"{folder}: the field is along {direction}, not y")
     data = np.load(folder / "pair_distribution.npz")
     poles, equators, peak, peak_angle = ring_sectors(
         data["g_xy"], data["x_edges"], data["y_edges"], ring, half_angle
@@ -110,7 +115,10 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         )
     if not 0.0 <= args.ring[0] < args.ring[1]:
         parser.error(f"--ring needs 0 <= inner < outer, got {args.ring}")
-    rows = [measure(f, tuple(args.ring), args.half_angle) for f in run_folders(args.paths)]
+    try:
+        rows = [measure(f, tuple(args.ring), args.half_angle) for f in run_folders(args.paths)]
+    except ValueError as error:  # a path that holds no run, a run without y field, a ring with empty sectors
+        parser.error(str(error))
     print(
         f"Contact ring {args.ring[0]} <= r_xy < {args.ring[1]} a in the slab |dz| < a; sectors "
         f"+-{args.half_angle:g} deg"

@@ -29,16 +29,21 @@ PHI = 0.15
 
 
 def points(folder: Path, mechanism: str) -> dict[tuple[int, float], list[dict[str, Any]]]:
-    """The phi = 0.15 results of ``mechanism`` under ``folder``, grouped by (N, Mn); Mn = inf for no field."""
+    """The phi = 0.15 results of ``mechanism`` under ``folder``, grouped by (N, Mn); Mn = inf for no field.
+    ValueError naming a ``result.json`` that is unreadable or lacks the keys read here."""
     grouped: dict[tuple[int, float], list[dict[str, Any]]] = defaultdict(list)
     for path in sorted(folder.glob("*/result.json")):
-        result = json.loads(path.read_text())
-        mason = float(result["mason_number"])
-        if abs(result["volume_fraction"] - PHI) > 1e-9:
+        try:
+            result = json.loads(path.read_text())
+            mason = float(result["mason_number"])
+            phi, n = float(result["volume_fraction"]), int(result["n_particles"])
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise ValueError(f"{path}: not a readable sim result ({error!r})") from error
+        if abs(phi - PHI) > 1e-9:
             continue
         if result["mechanism"] != mechanism and math.isfinite(mason):
             continue
-        grouped[(int(result["n_particles"]), mason)].append(result)
+        grouped[(n, mason)].append(result)
     return grouped
 
 
@@ -73,10 +78,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--plot", type=Path, help="write eta_r against Mn here")
     args = parser.parse_args(argv)
     dep: dict[tuple[int, float], list[dict[str, Any]]] = defaultdict(list)
-    for sweep in args.sweeps:
-        for key, results in points(sweep, "dep").items():
-            dep[key].extend(results)
-    dip = points(args.dip, "dip")
+    try:
+        for sweep in args.sweeps:
+            for key, results in points(sweep, "dep").items():
+                dep[key].extend(results)
+        dip = points(args.dip, "dip")
+    except ValueError as error:
+        parser.error(str(error))
     if not dep:
         parser.error(f"no phi = {PHI} DEP results under {[str(s) for s in args.sweeps]}")
     pure = [r for (n, mason), results in dip.items() if math.isinf(mason) for r in results]

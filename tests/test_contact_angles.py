@@ -64,15 +64,23 @@ def test_chains_along_the_field_sit_at_the_poles_and_rows_along_the_flow_at_the_
     assert chains["poles"] == pytest.approx(rows["equators"], rel=1e-12)  # the same structure, turned by 90
 
 
-def test_a_field_off_the_y_axis_and_bad_sectors_are_refused(tmp_path: Path) -> None:
+def test_a_field_off_the_y_axis_and_bad_sectors_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     script = load_script("contact_angles")
     folder = lattice_run(tmp_path / "run", axis=1)
     params = json.loads((folder / "params.json").read_text())
     params["config"]["field_direction"] = [0.0, 0.0, 1.0]
     (folder / "params.json").write_text(json.dumps(params))
-    with pytest.raises(SystemExit, match="not y"):
+    with pytest.raises(ValueError, match="not y"):
         script.measure(folder, (2.0, 2.3), 10.0)
-    with pytest.raises(SystemExit):
-        script.main([str(folder), "--half-angle", "50"])
-    with pytest.raises(SystemExit):
-        script.main([str(tmp_path / "nothing")])
+    # every bad input exits 2 (argparse's usage error) naming what is wrong, without a traceback
+    for argv, named in (
+        ([str(folder)], "not y"),
+        ([str(folder), "--half-angle", "50"], "--half-angle"),
+        ([str(tmp_path / "nothing")], "neither a run folder"),
+        ([str(lattice_run(tmp_path / "ok", axis=1)), "--ring", "2.0", "2.01", "--half-angle", "1"], "sector"),
+    ):
+        with pytest.raises(SystemExit) as exit_info:
+            script.main(argv)
+        assert exit_info.value.code == 2 and named in capsys.readouterr().err

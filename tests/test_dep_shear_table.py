@@ -54,8 +54,18 @@ def test_a_bingham_excess_reads_a_power_of_one_and_seeds_are_averaged(
     assert cells[0][13] == "1.40" and cells[1][13] == ""  # the DIP value where the DIP sweep has that Mn
 
 
-def test_no_pure_shear_reference_is_refused(tmp_path: Path) -> None:
+def test_no_pure_shear_reference_and_a_corrupt_result_are_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     point(tmp_path / "dep", 0.1, 1, 2.0)
     point(tmp_path / "dip", 0.1, 1, 1.4, mechanism="dip")
-    with pytest.raises(SystemExit):
-        load_script("dep_shear_table").main([str(tmp_path / "dep"), "--dip", str(tmp_path / "dip")])
+    main = load_script("dep_shear_table").main
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(tmp_path / "dep"), "--dip", str(tmp_path / "dip")])
+    assert exit_info.value.code == 2 and "pure-shear reference" in capsys.readouterr().err
+    point(tmp_path / "dip", "inf", 1, 1.5, mechanism="dip")
+    (tmp_path / "dep" / "broken").mkdir()
+    (tmp_path / "dep" / "broken" / "result.json").write_text("{")  # a truncated file: exit 2 naming it
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(tmp_path / "dep"), "--dip", str(tmp_path / "dip")])
+    assert exit_info.value.code == 2 and "broken/result.json" in capsys.readouterr().err
