@@ -74,12 +74,20 @@ def ring_sectors(
 
 def measure(folder: Path, ring: tuple[float, float], half_angle: float) -> dict[str, Any]:
     """One run's sector means and its parameters; ValueError naming the folder where its ``params.json`` is
-    missing or unreadable or its field is not along ``y``."""
+    missing or unreadable or lacks a key read here, or its field is not along ``y``."""
     try:
         params = json.loads((folder / "params.json").read_text())["config"]
-    except (OSError, ValueError, KeyError) as error:
-        raise ValueError(f"{folder}: no readable params.json with a config ({error})") from error
-    direction = np.asarray(params["field_direction"], dtype=float)
+        direction = np.asarray(params["field_direction"], dtype=float)
+        run = {
+            "run": folder.name,
+            "phi": params["volume_fraction"],
+            "mason": float(params["mason_number"]),  # "inf" (no field) is stored as a string
+            "mechanism": params["mechanism"],
+            "n": params["n_particles"],
+            "seed": params["seed"],
+        }
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{folder}: no readable params.json with a config ({error!r})") from error
     if not np.allclose(direction / np.linalg.norm(direction), [0.0, 1.0, 0.0]):
         raise ValueError(f"{folder}: the field is along {direction}, not y")
     data = np.load(folder / "pair_distribution.npz")
@@ -87,12 +95,7 @@ def measure(folder: Path, ring: tuple[float, float], half_angle: float) -> dict[
         data["g_xy"], data["x_edges"], data["y_edges"], ring, half_angle
     )
     return {
-        "run": folder.name,
-        "phi": params["volume_fraction"],
-        "mason": float(params["mason_number"]),  # "inf" (no field) is stored as a string
-        "mechanism": params["mechanism"],
-        "n": params["n_particles"],
-        "seed": params["seed"],
+        **run,
         "poles": poles,
         "equators": equators,
         "peak": peak,

@@ -37,11 +37,12 @@ def points(folder: Path, mechanism: str) -> dict[tuple[int, float], list[dict[st
             result = json.loads(path.read_text())
             mason = float(result["mason_number"])
             phi, n = float(result["volume_fraction"]), int(result["n_particles"])
+            its_mechanism = result["mechanism"]
         except (OSError, ValueError, KeyError, TypeError) as error:
             raise ValueError(f"{path}: not a readable sim result ({error!r})") from error
         if abs(phi - PHI) > 1e-9:
             continue
-        if result["mechanism"] != mechanism and math.isfinite(mason):
+        if its_mechanism != mechanism and math.isfinite(mason):
             continue
         grouped[(n, mason)].append(result)
     return grouped

@@ -74,8 +74,13 @@ def test_a_field_off_the_y_axis_and_bad_sectors_are_refused(
     (folder / "params.json").write_text(json.dumps(params))
     with pytest.raises(ValueError, match="not y"):
         script.measure(folder, (2.0, 2.3), 10.0)
+    keyless = lattice_run(tmp_path / "keyless", axis=1)
+    params = json.loads((keyless / "params.json").read_text())
+    del params["config"]["seed"]
+    (keyless / "params.json").write_text(json.dumps(params))
     # every bad input exits 2 (argparse's usage error) naming what is wrong, without a traceback
     for argv, named in (
+        ([str(keyless)], "keyless: no readable params.json"),
         ([str(folder)], "not y"),
         ([str(folder), "--half-angle", "50"], "--half-angle"),
         ([str(tmp_path / "nothing")], "neither a run folder"),

@@ -69,3 +69,9 @@ def test_no_pure_shear_reference_and_a_corrupt_result_are_refused(
     with pytest.raises(SystemExit) as exit_info:
         main([str(tmp_path / "dep"), "--dip", str(tmp_path / "dip")])
     assert exit_info.value.code == 2 and "broken/result.json" in capsys.readouterr().err
+    (tmp_path / "dep" / "broken" / "result.json").write_text(
+        '{"mason_number": 0.1, "volume_fraction": 0.15, "n_particles": 100}'
+    )  # complete JSON without the mechanism: exit 2 naming the file
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(tmp_path / "dep"), "--dip", str(tmp_path / "dip")])
+    assert exit_info.value.code == 2 and "broken/result.json" in capsys.readouterr().err
